@@ -1,0 +1,224 @@
+//! Tower identity: which database tower each track is.
+//!
+//! Map-based association: every tower of the track's type is projected into the
+//! image from the current pose guess, and unbound tracks are matched to free
+//! towers by a Hungarian assignment on bearing and size. A binding holds until its
+//! track ends; an operator's correction pins it.
+
+use std::collections::HashMap;
+
+use towernav_geometry::{PinholeCamera, Pose};
+
+use crate::assignment::max_score_matching;
+use crate::landmarks::LandmarkMap;
+use crate::tracker::TrackOutput;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdentityParams {
+    /// Expected spread of the predicted box centre, pixels.
+    pub bearing_sigma_px: f64,
+    /// Expected spread of log(observed height / predicted height).
+    pub log_size_sigma: f64,
+    /// Gate on the normalised distance; farther candidates are never bound.
+    pub gate: f64,
+}
+
+impl Default for IdentityParams {
+    fn default() -> Self {
+        Self {
+            bearing_sigma_px: 60.0,
+            log_size_sigma: 0.3,
+            gate: 3.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Identity {
+    params: IdentityParams,
+    /// track id -> tower index in the map.
+    bindings: HashMap<u64, usize>,
+    /// track id -> operator's choice (None: keep unbound).
+    pinned: HashMap<u64, Option<usize>>,
+}
+
+impl Identity {
+    pub fn new(params: IdentityParams) -> Self {
+        Self {
+            params,
+            ..Self::default()
+        }
+    }
+
+    /// Pins a track to a tower (or to none) until the track ends.
+    pub fn pin(&mut self, track_id: u64, tower: Option<usize>) {
+        self.pinned.insert(track_id, tower);
+        match tower {
+            Some(t) => {
+                self.bindings.retain(|_, bound| *bound != t);
+                self.bindings.insert(track_id, t);
+            }
+            None => {
+                self.bindings.remove(&track_id);
+            }
+        }
+    }
+
+    pub fn is_pinned(&self, track_id: u64) -> bool {
+        self.pinned.contains_key(&track_id)
+    }
+
+    /// Binds this frame's tracks; returns each track's tower index, in order.
+    pub fn update(
+        &mut self,
+        tracks: &[TrackOutput],
+        live_track_ids: &[u64],
+        guess: &Pose,
+        camera: &PinholeCamera,
+        map: &LandmarkMap,
+    ) -> Vec<Option<usize>> {
+        self.bindings.retain(|id, _| live_track_ids.contains(id));
+        self.pinned.retain(|id, _| live_track_ids.contains(id));
+
+        let unbound: Vec<&TrackOutput> = tracks
+            .iter()
+            .filter(|t| {
+                !self.bindings.contains_key(&t.track_id) && !self.pinned.contains_key(&t.track_id)
+            })
+            .collect();
+        if !unbound.is_empty() {
+            let taken: Vec<usize> = self.bindings.values().copied().collect();
+            let free: Vec<usize> = (0..map.towers.len())
+                .filter(|i| !taken.contains(i))
+                .collect();
+            let camera_from_world = camera.world_from_camera(guess).inverse();
+            let predicted: Vec<Option<(f64, f64)>> = free
+                .iter()
+                .map(|&i| {
+                    let tower = &map.towers[i];
+                    let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
+                    let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
+                    Some((0.5 * (foot.x + top.x), foot.y - top.y))
+                })
+                .collect();
+            let k = &camera.intrinsics;
+            let p = self.params;
+            let matches = max_score_matching(
+                unbound.len(),
+                free.len(),
+                |r, c| {
+                    let track = unbound[r];
+                    let Some((u, h)) = predicted[c] else {
+                        return 0.0;
+                    };
+                    if map.towers[free[c]].tower_type != track.tower_type || h <= 0.0 {
+                        return 0.0;
+                    }
+                    let b = &track.bbox;
+                    let bearing = (b.center_x() - u) / p.bearing_sigma_px;
+                    let cut = b.top <= 1.0 || b.bottom >= f64::from(k.height) - 1.0;
+                    let size = if cut {
+                        0.0
+                    } else {
+                        (b.height() / h).ln() / p.log_size_sigma
+                    };
+                    p.gate - (bearing * bearing + size * size).sqrt()
+                },
+                f64::MIN_POSITIVE,
+            );
+            for (r, c) in matches {
+                self.bindings.insert(unbound[r].track_id, free[c]);
+            }
+        }
+        tracks
+            .iter()
+            .map(|t| self.bindings.get(&t.track_id).copied())
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::landmarks::MapTower;
+    use nalgebra::Point3;
+    use towernav_geometry::{Attitude, PixelBox};
+    use towernav_protocol::TowerType;
+
+    fn map() -> LandmarkMap {
+        let tower = |id: &str, x: f64, y: f64| MapTower {
+            id: id.into(),
+            tower_type: TowerType::A,
+            foot_in_world: Point3::new(x, y, 0.0),
+            height_m: 30.0,
+        };
+        LandmarkMap {
+            towers: vec![
+                tower("A1", 100.0, 30.0),
+                tower("A2", 100.0, -30.0),
+                tower("A3", 300.0, 30.0),
+            ],
+        }
+    }
+
+    fn observe(
+        pose: &Pose,
+        camera: &PinholeCamera,
+        map: &LandmarkMap,
+        i: usize,
+        id: u64,
+    ) -> TrackOutput {
+        let cfw = camera.world_from_camera(pose).inverse();
+        let t = &map.towers[i];
+        let foot = camera.project(&(cfw * t.foot_in_world)).expect("visible");
+        let top = camera.project(&(cfw * t.top_in_world())).expect("visible");
+        TrackOutput {
+            track_id: id,
+            bbox: PixelBox::new(foot.x - 5.0, top.y, foot.x + 5.0, foot.y),
+            tower_type: TowerType::A,
+        }
+    }
+
+    #[test]
+    fn look_alike_towers_are_told_apart_by_where_they_stand() {
+        let camera = PinholeCamera::default_hd();
+        let truth = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: Attitude::level(0.0),
+        };
+        let map = map();
+        let tracks = [
+            observe(&truth, &camera, &map, 1, 7),
+            observe(&truth, &camera, &map, 0, 8),
+            observe(&truth, &camera, &map, 2, 9),
+        ];
+        // The guess is 8 m off: still the right towers.
+        let guess = Pose {
+            position_in_world: Point3::new(-5.0, 6.0, 30.0),
+            ..truth
+        };
+        let mut identity = Identity::new(IdentityParams::default());
+        let bound = identity.update(&tracks, &[7, 8, 9], &guess, &camera, &map);
+        assert_eq!(bound, [Some(1), Some(0), Some(2)]);
+    }
+
+    #[test]
+    fn a_pin_overrides_and_ends_with_its_track() {
+        let camera = PinholeCamera::default_hd();
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: Attitude::level(0.0),
+        };
+        let map = map();
+        let tracks = [observe(&pose, &camera, &map, 0, 7)];
+        let mut identity = Identity::new(IdentityParams::default());
+        identity.pin(7, Some(2));
+        assert_eq!(
+            identity.update(&tracks, &[7], &pose, &camera, &map),
+            [Some(2)]
+        );
+        assert!(identity.is_pinned(7));
+        identity.update(&[], &[], &pose, &camera, &map);
+        assert!(!identity.is_pinned(7));
+    }
+}

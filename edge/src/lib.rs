@@ -1,0 +1,18 @@
+//! The onboard pipeline.
+//!
+//! The core (`tracker`, `identity`, `localizer`, `landmarks`, `pipeline`,
+//! `sim_eval`, `wire`) is pure and deterministic: time comes in with each frame,
+//! and it imports no tokio, zenoh or ort. `shell` drives it over Zenoh.
+
+pub mod assignment;
+pub mod identity;
+pub mod landmarks;
+pub mod localizer;
+pub mod pipeline;
+pub mod shell;
+pub mod sim_eval;
+pub mod tracker;
+pub mod wire;
+
+pub use landmarks::{LandmarkMap, MapTower};
+pub use pipeline::{BoundTrack, FrameOutput, Pipeline, PipelineConfig};

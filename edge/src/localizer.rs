@@ -1,0 +1,193 @@
+//! The seed's localization by landmarks (LbL), as method.md restates it.
+//!
+//! Per tower: `D = f H / h` along the optical axis, `E = e H / h` to the right,
+//! `p_uav = p_tower - R(yaw) (E, D)`, and the camera height from the foot's row.
+//! Several towers: the plain mean. The camera is taken as level.
+
+use nalgebra::{Matrix2, Matrix4, Point3, Vector2};
+use towernav_geometry::{Intrinsics, PixelBox};
+
+use crate::landmarks::MapTower;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalizerParams {
+    /// Assumed spread of one box edge, pixels; sets the reported covariance.
+    pub edge_sigma_px: f64,
+    /// Boxes shorter than this give no fix (the seed trusted only large boxes).
+    pub min_box_height_px: f64,
+    /// Spread of the IMU heading, radians.
+    pub yaw_sigma: f64,
+}
+
+impl Default for LocalizerParams {
+    fn default() -> Self {
+        Self {
+            edge_sigma_px: 1.5,
+            min_box_height_px: 20.0,
+            yaw_sigma: 0.5f64.to_radians(),
+        }
+    }
+}
+
+/// One bound, measured tower.
+#[derive(Debug, Clone, Copy)]
+pub struct Observation<'a> {
+    pub tower: &'a MapTower,
+    pub bbox: PixelBox,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fix {
+    pub position_in_world: Point3<f64>,
+    pub yaw: f64,
+    /// (east, north, up, yaw).
+    pub covariance: Matrix4<f64>,
+    pub towers_used: Vec<String>,
+}
+
+/// Whether the image edge cuts the box, which makes its height a lie.
+pub fn touches_edge(b: &PixelBox, k: &Intrinsics) -> bool {
+    const MARGIN: f64 = 1.0;
+    b.left <= MARGIN
+        || b.top <= MARGIN
+        || b.right >= f64::from(k.width) - MARGIN
+        || b.bottom >= f64::from(k.height) - MARGIN
+}
+
+pub fn seed_lbl(
+    observations: &[Observation<'_>],
+    k: &Intrinsics,
+    yaw: f64,
+    params: &LocalizerParams,
+) -> Option<Fix> {
+    let forward = Vector2::new(yaw.cos(), yaw.sin());
+    let right = Vector2::new(yaw.sin(), -yaw.cos());
+    let sigma_h = std::f64::consts::SQRT_2 * params.edge_sigma_px;
+    let mut sum = Point3::origin().coords;
+    let mut cov_sum = Matrix4::zeros();
+    let mut used = Vec::new();
+    for o in observations {
+        let b = &o.bbox;
+        let h = b.height();
+        if h < params.min_box_height_px || touches_edge(b, k) {
+            continue;
+        }
+        let big_h = o.tower.height_m;
+        let d = k.fy * big_h / h;
+        let e = (b.center_x() - k.cx) * d / k.fx;
+        let above_foot = (b.bottom - k.cy) * d / k.fy;
+        let horizontal = o.tower.foot_in_world.xy().coords - (right * e + forward * d);
+        sum += nalgebra::Vector3::new(
+            horizontal.x,
+            horizontal.y,
+            o.tower.foot_in_world.z + above_foot,
+        );
+
+        // First-order spread: sigma_D = D^2/(f H) sigma_h; E and height scale with D.
+        let sigma_d = d * d / (k.fy * big_h) * sigma_h;
+        let sigma_e =
+            (e / d).abs() * sigma_d + d / k.fx * params.edge_sigma_px + d * params.yaw_sigma;
+        let sigma_up = (above_foot / d).abs() * sigma_d + d / k.fy * params.edge_sigma_px;
+        let rot = Matrix2::from_columns(&[right, forward]);
+        let cov_en =
+            rot * Matrix2::new(sigma_e * sigma_e, 0.0, 0.0, sigma_d * sigma_d) * rot.transpose();
+        let mut cov = Matrix4::zeros();
+        cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&cov_en);
+        cov[(2, 2)] = sigma_up * sigma_up;
+        cov_sum += cov;
+        used.push(o.tower.id.clone());
+    }
+    if used.is_empty() {
+        return None;
+    }
+    let n = used.len() as f64;
+    let mut covariance = cov_sum / (n * n);
+    covariance[(3, 3)] = params.yaw_sigma * params.yaw_sigma;
+    Some(Fix {
+        position_in_world: Point3::from(sum / n),
+        yaw,
+        covariance,
+        towers_used: used,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use towernav_geometry::{Attitude, PinholeCamera, Pose};
+    use towernav_protocol::TowerType;
+
+    fn tower(id: &str, x: f64, y: f64, h: f64) -> MapTower {
+        MapTower {
+            id: id.into(),
+            tower_type: TowerType::B,
+            foot_in_world: Point3::new(x, y, 0.0),
+            height_m: h,
+        }
+    }
+
+    /// The seed's labeling convention: top edge at the top, bottom edge at the foot on the axis.
+    fn label(camera: &PinholeCamera, pose: &Pose, t: &MapTower) -> PixelBox {
+        let cfw = camera.world_from_camera(pose).inverse();
+        let foot = camera.project(&(cfw * t.foot_in_world)).expect("visible");
+        let top = camera.project(&(cfw * t.top_in_world())).expect("visible");
+        PixelBox::new(foot.x - 4.0, top.y, foot.x + 4.0, foot.y)
+    }
+
+    proptest! {
+        /// With exact boxes and a level camera the seed's geometry is exact.
+        #[test]
+        fn exact_boxes_give_the_exact_position(x in -50.0f64..50.0, y in -50.0f64..50.0, z in 20.0f64..40.0, yaw in -3.1f64..3.1) {
+            let camera = PinholeCamera::default_hd();
+            let pose = Pose { position_in_world: Point3::new(x, y, z), attitude: Attitude::level(yaw) };
+            let ahead = |dist: f64, side: f64| Point3::new(x, y, 0.0) + nalgebra::Vector3::new(yaw.cos(), yaw.sin(), 0.0) * dist
+                + nalgebra::Vector3::new(yaw.sin(), -yaw.cos(), 0.0) * side;
+            let a = ahead(150.0, 40.0);
+            let b = ahead(220.0, -60.0);
+            let towers = [tower("B1", a.x, a.y, 38.0), tower("B2", b.x, b.y, 45.0)];
+            let obs: Vec<_> = towers.iter().map(|t| Observation { tower: t, bbox: label(&camera, &pose, t) }).collect();
+            let fix = seed_lbl(&obs, &camera.intrinsics, yaw, &LocalizerParams::default()).expect("fix");
+            prop_assert!((fix.position_in_world - pose.position_in_world).norm() < 1e-6);
+            prop_assert_eq!(fix.towers_used.len(), 2);
+            prop_assert!(fix.covariance[(0, 0)] > 0.0 && fix.covariance[(1, 1)] > 0.0);
+        }
+    }
+
+    #[test]
+    fn small_or_cut_boxes_give_no_fix() {
+        let k = PinholeCamera::default_hd().intrinsics;
+        let t = tower("B1", 100.0, 0.0, 38.0);
+        let tiny = Observation {
+            tower: &t,
+            bbox: PixelBox::new(600.0, 300.0, 604.0, 310.0),
+        };
+        let cut = Observation {
+            tower: &t,
+            bbox: PixelBox::new(600.0, 100.0, 640.0, 720.0),
+        };
+        assert!(seed_lbl(&[tiny, cut], &k, 0.0, &LocalizerParams::default()).is_none());
+    }
+
+    #[test]
+    fn spread_grows_with_the_square_of_distance() {
+        let camera = PinholeCamera::default_hd();
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: Attitude::level(0.0),
+        };
+        let sigma_forward = |d: f64| {
+            let t = tower("B1", d, 0.0, 38.0);
+            let obs = [Observation {
+                tower: &t,
+                bbox: label(&camera, &pose, &t),
+            }];
+            seed_lbl(&obs, &camera.intrinsics, 0.0, &LocalizerParams::default())
+                .expect("fix")
+                .covariance[(0, 0)]
+                .sqrt()
+        };
+        let ratio = sigma_forward(200.0) / sigma_forward(100.0);
+        assert!((ratio - 4.0).abs() < 0.01, "{ratio}");
+    }
+}

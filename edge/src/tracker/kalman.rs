@@ -1,0 +1,100 @@
+//! Constant-velocity Kalman filter in box space: (cx, cy, w, h) and their rates.
+//!
+//! Noise scales with box height, as in DeepSORT, so near and far towers are
+//! trusted alike in relative terms. Rates are per second; `dt` comes from frame times.
+
+use nalgebra::{SMatrix, SVector};
+use towernav_geometry::PixelBox;
+
+type State = SVector<f64, 8>;
+type Cov = SMatrix<f64, 8, 8>;
+type Meas = SVector<f64, 4>;
+
+/// Relative position noise of a measurement (fraction of box height).
+const POS_STD: f64 = 0.05;
+/// Relative rate noise, per second.
+const VEL_STD: f64 = 0.2;
+
+#[derive(Debug, Clone)]
+pub struct BoxKalman {
+    x: State,
+    p: Cov,
+}
+
+fn measurement(b: &PixelBox) -> Meas {
+    Meas::new(b.center_x(), b.center_y(), b.width(), b.height())
+}
+
+impl BoxKalman {
+    pub fn new(b: &PixelBox) -> Self {
+        let z = measurement(b);
+        let h = b.height().max(1.0);
+        let mut x = State::zeros();
+        x.fixed_rows_mut::<4>(0).copy_from(&z);
+        let mut p = Cov::zeros();
+        for i in 0..4 {
+            p[(i, i)] = (2.0 * POS_STD * h).powi(2);
+            p[(i + 4, i + 4)] = (10.0 * VEL_STD * h).powi(2);
+        }
+        Self { x, p }
+    }
+
+    pub fn predict(&mut self, dt: f64) {
+        let dt = dt.max(0.0);
+        let mut f = Cov::identity();
+        for i in 0..4 {
+            f[(i, i + 4)] = dt;
+        }
+        let h = self.x[3].max(1.0);
+        let mut q = Cov::zeros();
+        for i in 0..4 {
+            q[(i, i)] = (POS_STD * h).powi(2) * dt;
+            q[(i + 4, i + 4)] = (VEL_STD * h).powi(2) * dt;
+        }
+        self.x = f * self.x;
+        self.p = f * self.p * f.transpose() + q;
+    }
+
+    pub fn update(&mut self, b: &PixelBox) {
+        let z = measurement(b);
+        let h = self.x[3].max(1.0);
+        let r = SMatrix::<f64, 4, 4>::from_diagonal_element((POS_STD * h).powi(2));
+        let hm = SMatrix::<f64, 4, 8>::identity();
+        let s = hm * self.p * hm.transpose() + r;
+        let Some(s_inv) = s.try_inverse() else {
+            // Degenerate covariance: restart from the measurement rather than diverge.
+            *self = Self::new(b);
+            return;
+        };
+        let k = self.p * hm.transpose() * s_inv;
+        self.x += k * (z - hm * self.x);
+        self.p = (Cov::identity() - k * hm) * self.p;
+    }
+
+    pub fn bbox(&self) -> PixelBox {
+        let (cx, cy) = (self.x[0], self.x[1]);
+        let (w, h) = (self.x[2].max(1.0), self.x[3].max(1.0));
+        PixelBox::new(cx - w / 2.0, cy - h / 2.0, cx + w / 2.0, cy + h / 2.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn learns_a_constant_velocity() {
+        let mut kf = BoxKalman::new(&PixelBox::new(100.0, 100.0, 120.0, 200.0));
+        for i in 1..=30 {
+            kf.predict(1.0 / 30.0);
+            let x = 100.0 + 60.0 * i as f64 / 30.0;
+            kf.update(&PixelBox::new(x, 100.0, x + 20.0, 200.0));
+        }
+        kf.predict(0.5);
+        let predicted = kf.bbox().center_x();
+        assert!(
+            (predicted - (110.0 + 60.0 * 1.5)).abs() < 3.0,
+            "{predicted}"
+        );
+    }
+}

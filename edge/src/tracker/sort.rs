@@ -1,0 +1,187 @@
+//! SORT: Kalman prediction plus Hungarian assignment on IoU (Bewley et al. 2016).
+//! Boxes of different tower types never match.
+
+use towernav_geometry::PixelBox;
+use towernav_protocol::{Detection, TowerType};
+
+use super::kalman::BoxKalman;
+use crate::assignment::max_score_matching;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SortParams {
+    /// Least IoU between a prediction and a detection to associate them.
+    pub iou_min: f64,
+    /// Hits before a track is reported.
+    pub min_hits: u32,
+    /// Seconds a track survives without a detection.
+    pub max_coast_s: f64,
+    /// Detections under this score start no track.
+    pub min_score: f64,
+}
+
+impl Default for SortParams {
+    fn default() -> Self {
+        Self {
+            iou_min: 0.2,
+            min_hits: 3,
+            max_coast_s: 0.5,
+            min_score: 0.3,
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Track {
+    id: u64,
+    kf: BoxKalman,
+    tower_type: TowerType,
+    hits: u32,
+    last_update_s: f64,
+    confirmed: bool,
+}
+
+/// A confirmed track that a detection updated in this frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackOutput {
+    pub track_id: u64,
+    /// The detection's box: what the camera measured this frame.
+    pub bbox: PixelBox,
+    pub tower_type: TowerType,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct SortTracker {
+    params: SortParams,
+    tracks: Vec<Track>,
+    next_id: u64,
+    last_time_s: Option<f64>,
+}
+
+impl SortTracker {
+    pub fn new(params: SortParams) -> Self {
+        Self {
+            params,
+            tracks: Vec::new(),
+            next_id: 1,
+            last_time_s: None,
+        }
+    }
+
+    /// Ids of every live track, reported or not.
+    pub fn live_ids(&self) -> impl Iterator<Item = u64> + '_ {
+        self.tracks.iter().map(|t| t.id)
+    }
+
+    pub fn update(&mut self, time_s: f64, detections: &[Detection]) -> Vec<TrackOutput> {
+        let dt = self.last_time_s.map_or(0.0, |t| (time_s - t).max(0.0));
+        self.last_time_s = Some(time_s);
+        for t in &mut self.tracks {
+            t.kf.predict(dt);
+        }
+        let predicted: Vec<PixelBox> = self.tracks.iter().map(|t| t.kf.bbox()).collect();
+        let detections: Vec<&Detection> =
+            detections.iter().filter(|d| d.bbox.is_finite()).collect();
+        let matches = max_score_matching(
+            self.tracks.len(),
+            detections.len(),
+            |r, c| {
+                if self.tracks[r].tower_type == detections[c].tower_type {
+                    predicted[r].iou(&detections[c].bbox)
+                } else {
+                    0.0
+                }
+            },
+            self.params.iou_min,
+        );
+        let mut matched_detection = vec![false; detections.len()];
+        let mut outputs = Vec::new();
+        for (r, c) in matches {
+            matched_detection[c] = true;
+            let track = &mut self.tracks[r];
+            let d = detections[c];
+            track.kf.update(&d.bbox);
+            track.hits += 1;
+            track.last_update_s = time_s;
+            track.confirmed |= track.hits >= self.params.min_hits;
+            if track.confirmed {
+                outputs.push(TrackOutput {
+                    track_id: track.id,
+                    bbox: d.bbox,
+                    tower_type: d.tower_type,
+                });
+            }
+        }
+        for (d, _) in detections
+            .iter()
+            .zip(&matched_detection)
+            .filter(|(d, m)| !**m && d.score >= self.params.min_score)
+        {
+            self.tracks.push(Track {
+                id: self.next_id,
+                kf: BoxKalman::new(&d.bbox),
+                tower_type: d.tower_type,
+                hits: 1,
+                last_update_s: time_s,
+                confirmed: self.params.min_hits <= 1,
+            });
+            self.next_id += 1;
+        }
+        let max_coast = self.params.max_coast_s;
+        self.tracks
+            .retain(|t| time_s - t.last_update_s <= max_coast);
+        outputs.sort_by_key(|o| o.track_id);
+        outputs
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn det(x: f64, t: TowerType) -> Detection {
+        Detection {
+            bbox: PixelBox::new(x, 100.0, x + 30.0, 300.0),
+            tower_type: t,
+            score: 0.9,
+        }
+    }
+
+    #[test]
+    fn a_moving_box_keeps_one_id_after_confirmation() {
+        let mut sort = SortTracker::new(SortParams::default());
+        let mut ids = Vec::new();
+        for i in 0..60 {
+            let out = sort.update(
+                i as f64 / 30.0,
+                &[det(100.0 + 3.0 * i as f64, TowerType::A)],
+            );
+            ids.extend(out.iter().map(|o| o.track_id));
+        }
+        assert_eq!(ids.len(), 58, "reported from the third hit on");
+        assert!(ids.iter().all(|&id| id == ids[0]));
+    }
+
+    #[test]
+    fn different_types_never_share_a_track() {
+        let mut sort = SortTracker::new(SortParams {
+            min_hits: 1,
+            ..SortParams::default()
+        });
+        sort.update(0.0, &[det(100.0, TowerType::A)]);
+        let out = sort.update(1.0 / 30.0, &[det(100.0, TowerType::B)]);
+        assert!(out.is_empty(), "the B box must not continue the A track");
+        assert_eq!(sort.live_ids().count(), 2);
+    }
+
+    #[test]
+    fn a_track_dies_after_coasting_too_long() {
+        let mut sort = SortTracker::new(SortParams::default());
+        for i in 0..5 {
+            sort.update(i as f64 / 30.0, &[det(100.0, TowerType::C)]);
+        }
+        sort.update(0.5, &[]);
+        assert_eq!(sort.live_ids().count(), 1);
+        sort.update(1.0, &[]);
+        assert_eq!(sort.live_ids().count(), 0);
+    }
+}

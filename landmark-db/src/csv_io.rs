@@ -1,0 +1,235 @@
+//! CSV exchange. Columns: `id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m,notes`
+//! (`notes` optional); heights in metres above the WGS84 ellipsoid.
+
+use std::fmt;
+use std::io::{Read, Write};
+use std::path::Path;
+
+use towernav_protocol::LandmarkRecord;
+
+use crate::error::ImportError;
+use crate::store::LandmarkDb;
+use crate::validate::validate;
+
+pub const COLUMNS: [&str; 7] = [
+    "id",
+    "tower_type",
+    "lat_deg",
+    "lon_deg",
+    "ground_elev_m",
+    "height_m",
+    "notes",
+];
+
+/// One rejected row: where it is, which record, which field, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RowProblem {
+    /// 1-based line in the file (the header is line 1).
+    pub line: u64,
+    pub id: String,
+    pub field: String,
+    pub reason: String,
+}
+
+impl fmt::Display for RowProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "line {} (id {:?}): {}: {}",
+            self.line, self.id, self.field, self.reason
+        )
+    }
+}
+
+/// Parses and validates every row; returns all records or every problem found.
+pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, ImportError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(input);
+    let headers = reader
+        .headers()
+        .map_err(|e| ImportError::Read {
+            file: file.into(),
+            reason: e.to_string(),
+        })?
+        .clone();
+    let column = |name: &str| headers.iter().position(|h| h == name);
+    let mut index = [0usize; 6];
+    for (slot, name) in index.iter_mut().zip(COLUMNS) {
+        *slot = column(name).ok_or_else(|| ImportError::Read {
+            file: file.into(),
+            reason: format!(
+                "missing column {name:?} (header must have {})",
+                COLUMNS.join(",")
+            ),
+        })?;
+    }
+    let notes = column("notes");
+
+    let mut records = Vec::new();
+    let mut problems = Vec::new();
+    let mut seen = std::collections::HashMap::new();
+    for row in reader.records() {
+        let row = match row {
+            Ok(row) => row,
+            Err(e) => {
+                problems.push(RowProblem {
+                    line: e.position().map_or(0, |p| p.line()),
+                    id: String::new(),
+                    field: "row".into(),
+                    reason: e.to_string(),
+                });
+                continue;
+            }
+        };
+        let line = row.position().map_or(0, |p| p.line());
+        let cell = |i: usize| row.get(i).unwrap_or("");
+        let id = cell(index[0]).to_string();
+        let problem = |field: &str, reason: String| RowProblem {
+            line,
+            id: id.clone(),
+            field: field.into(),
+            reason,
+        };
+        let number = |i: usize| -> Result<f64, RowProblem> {
+            cell(index[i])
+                .parse::<f64>()
+                .map_err(|_| problem(COLUMNS[i], format!("{:?} is not a number", cell(index[i]))))
+        };
+        let parsed = (|| {
+            Ok(LandmarkRecord {
+                id: id.clone(),
+                tower_type: cell(index[1])
+                    .parse()
+                    .map_err(|e| problem("tower_type", e))?,
+                lat_deg: number(2)?,
+                lon_deg: number(3)?,
+                ground_elev_m: number(4)?,
+                height_m: number(5)?,
+                notes: notes.map(|i| cell(i).to_string()).unwrap_or_default(),
+                revision: 0,
+            })
+        })();
+        let record = match parsed.and_then(|r| {
+            validate(&r)
+                .map(|()| r)
+                .map_err(|e| problem(e.field, e.reason))
+        }) {
+            Ok(r) => r,
+            Err(p) => {
+                problems.push(p);
+                continue;
+            }
+        };
+        if let Some(first) = seen.insert(record.id.clone(), line) {
+            problems.push(problem("id", format!("duplicate of line {first}")));
+            continue;
+        }
+        records.push(record);
+    }
+    if problems.is_empty() {
+        Ok(records)
+    } else {
+        Err(ImportError::Rejected {
+            file: file.into(),
+            problems,
+        })
+    }
+}
+
+/// Imports a CSV file all-or-nothing: one bad row refuses the whole file and leaves the database as it was.
+pub fn import_csv(db: &mut LandmarkDb, path: &Path) -> Result<usize, ImportError> {
+    let file = path.display().to_string();
+    let input = std::fs::File::open(path).map_err(|e| ImportError::Read {
+        file: file.clone(),
+        reason: e.to_string(),
+    })?;
+    let records = read_csv(input, &file)?;
+    db.upsert_all(&records)?;
+    Ok(records.len())
+}
+
+pub fn export_csv(records: &[LandmarkRecord], output: impl Write) -> Result<(), csv::Error> {
+    let mut writer = csv::Writer::from_writer(output);
+    writer.write_record(COLUMNS)?;
+    for r in records {
+        writer.write_record([
+            r.id.clone(),
+            r.tower_type.to_string(),
+            format!("{:.9}", r.lat_deg),
+            format!("{:.9}", r.lon_deg),
+            format!("{:.3}", r.ground_elev_m),
+            format!("{:.3}", r.height_m),
+            r.notes.clone(),
+        ])?;
+    }
+    writer.flush()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use towernav_protocol::TowerType;
+
+    const GOOD: &str = "id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m,notes\n\
+                        A1,A,30.5,114.3,20,35,north line\n\
+                        B1,B,30.501,114.301,20,40,\n";
+
+    #[test]
+    fn a_good_file_imports_every_row() {
+        let records = read_csv(GOOD.as_bytes(), "good.csv").expect("import");
+        assert_eq!(records.len(), 2);
+        assert_eq!(records[0].notes, "north line");
+        assert_eq!(records[1].tower_type, TowerType::B);
+    }
+
+    #[test]
+    fn every_bad_row_is_reported_with_line_and_field() {
+        let bad = format!(
+            "{GOOD}C1,C,30.5,114.3,20,tall,\nD1,Q,30.5,114.3,20,40,\nA1,A,30.5,114.3,20,35,\n"
+        );
+        let Err(ImportError::Rejected { problems, .. }) = read_csv(bad.as_bytes(), "bad.csv")
+        else {
+            panic!("must be rejected");
+        };
+        let summary: Vec<_> = problems
+            .iter()
+            .map(|p| (p.line, p.field.as_str()))
+            .collect();
+        assert_eq!(summary, [(4, "height_m"), (5, "tower_type"), (6, "id")]);
+    }
+
+    #[test]
+    fn a_missing_column_is_named() {
+        let err =
+            read_csv("id,tower_type,lat_deg\nA1,A,30\n".as_bytes(), "x.csv").expect_err("refuse");
+        assert!(err.to_string().contains("lon_deg"), "{err}");
+    }
+
+    proptest! {
+        #[test]
+        fn export_then_import_loses_nothing(
+            rows in proptest::collection::vec((0usize..4, -89.0f64..89.0, -179.0f64..179.0, -100.0f64..3000.0, 1.0f64..150.0, "[a-z ,\"]{0,12}"), 1..20)
+        ) {
+            let records: Vec<LandmarkRecord> = rows.into_iter().enumerate().map(|(i, (t, lat, lon, elev, h, notes))| LandmarkRecord {
+                id: format!("T{i}"),
+                tower_type: TowerType::ALL[t],
+                lat_deg: lat, lon_deg: lon, ground_elev_m: elev, height_m: h,
+                notes: notes.trim().to_string(), revision: 0,
+            }).collect();
+            let mut out = Vec::new();
+            export_csv(&records, &mut out).expect("export");
+            let back = read_csv(out.as_slice(), "round.csv").expect("import");
+            prop_assert_eq!(back.len(), records.len());
+            for (a, b) in records.iter().zip(&back) {
+                prop_assert_eq!(&a.id, &b.id);
+                prop_assert_eq!(a.tower_type, b.tower_type);
+                prop_assert_eq!(&a.notes, &b.notes);
+                prop_assert!((a.lat_deg - b.lat_deg).abs() < 1e-8 && (a.lon_deg - b.lon_deg).abs() < 1e-8);
+                prop_assert!((a.height_m - b.height_m).abs() < 1e-3 && (a.ground_elev_m - b.ground_elev_m).abs() < 1e-3);
+            }
+        }
+    }
+}

@@ -1,0 +1,17 @@
+//! The surveyed tower database: validation, SQLite storage and CSV exchange.
+//!
+//! Records are [`towernav_protocol::LandmarkRecord`], the same type that
+//! crosses the wire, so a tower means one thing everywhere.
+
+pub mod csv_io;
+pub mod error;
+pub mod store;
+pub mod validate;
+
+/// Geodesy has one home, `towernav-geometry`; re-exported for database users.
+pub use towernav_geometry::geodesy;
+
+pub use csv_io::{RowProblem, export_csv, import_csv, read_csv};
+pub use error::{DbError, ImportError};
+pub use store::LandmarkDb;
+pub use validate::{ValidationError, validate};

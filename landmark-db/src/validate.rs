@@ -1,0 +1,96 @@
+//! What a surveyed tower must satisfy before it is stored or used for a fix.
+
+use towernav_protocol::LandmarkRecord;
+
+/// A record field that is wrong, named so a surveyor can find and fix it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("landmark {id:?}: {field} {reason}")]
+pub struct ValidationError {
+    pub id: String,
+    pub field: &'static str,
+    pub reason: String,
+}
+
+/// Tallest tower the database accepts; taller is almost surely a unit slip (feet, cm).
+pub const MAX_HEIGHT_M: f64 = 200.0;
+
+pub fn validate(r: &LandmarkRecord) -> Result<(), ValidationError> {
+    let err = |field, reason: String| {
+        Err(ValidationError {
+            id: r.id.clone(),
+            field,
+            reason,
+        })
+    };
+    if r.id.trim().is_empty() {
+        return err("id", "is empty".into());
+    }
+    if r.id.len() > 32
+        || !r
+            .id
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c))
+    {
+        return err("id", "must be 1-32 of A-Z a-z 0-9 _ - .".into());
+    }
+    if !(r.lat_deg.is_finite() && (-90.0..=90.0).contains(&r.lat_deg)) {
+        return err("lat_deg", format!("{} is outside -90..=90", r.lat_deg));
+    }
+    if !(r.lon_deg.is_finite() && (-180.0..=180.0).contains(&r.lon_deg)) {
+        return err("lon_deg", format!("{} is outside -180..=180", r.lon_deg));
+    }
+    if !(r.ground_elev_m.is_finite() && (-500.0..=9000.0).contains(&r.ground_elev_m)) {
+        return err(
+            "ground_elev_m",
+            format!("{} is outside -500..=9000 m", r.ground_elev_m),
+        );
+    }
+    if !(r.height_m.is_finite() && r.height_m > 0.0 && r.height_m <= MAX_HEIGHT_M) {
+        return err(
+            "height_m",
+            format!("{} is outside 0..={MAX_HEIGHT_M} m", r.height_m),
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use towernav_protocol::TowerType;
+
+    fn good() -> LandmarkRecord {
+        LandmarkRecord {
+            id: "A1".into(),
+            tower_type: TowerType::A,
+            lat_deg: 30.5,
+            lon_deg: 114.3,
+            ground_elev_m: 20.0,
+            height_m: 35.0,
+            notes: String::new(),
+            revision: 0,
+        }
+    }
+
+    #[test]
+    fn a_good_record_passes() {
+        assert_eq!(validate(&good()), Ok(()));
+    }
+
+    #[test]
+    fn each_bad_field_is_named() {
+        let cases: [(&str, fn(&mut LandmarkRecord)); 5] = [
+            ("id", |r| r.id = "a b".into()),
+            ("lat_deg", |r| r.lat_deg = 95.0),
+            ("lon_deg", |r| r.lon_deg = f64::NAN),
+            ("ground_elev_m", |r| r.ground_elev_m = 1e6),
+            ("height_m", |r| r.height_m = -3.0),
+        ];
+        for (field, spoil) in cases {
+            let mut r = good();
+            spoil(&mut r);
+            let e = validate(&r).expect_err(field);
+            assert_eq!(e.field, field);
+        }
+    }
+}

@@ -1,0 +1,228 @@
+//! The messages. Units are in the field names; angles are radians unless named `_deg`.
+
+use serde::{Deserialize, Serialize};
+use towernav_geometry::PixelBox;
+
+use crate::codec::Message;
+use crate::ids::NodeId;
+
+/// The detector's tower classes; the landmark database uses the same set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum TowerType {
+    A,
+    B,
+    C,
+    D,
+}
+
+impl TowerType {
+    pub const ALL: [TowerType; 4] = [TowerType::A, TowerType::B, TowerType::C, TowerType::D];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TowerType::A => "A",
+            TowerType::B => "B",
+            TowerType::C => "C",
+            TowerType::D => "D",
+        }
+    }
+
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl std::str::FromStr for TowerType {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        TowerType::ALL
+            .into_iter()
+            .find(|t| t.as_str().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| format!("unknown tower type {s:?} (expected one of A, B, C, D)"))
+    }
+}
+
+impl std::fmt::Display for TowerType {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// How a pose was computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PoseMethod {
+    /// The seed's localization by landmarks: level camera, mean over towers.
+    SeedLbl,
+}
+
+/// One pose estimate of one UAV for one frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseEstimate {
+    pub uav: NodeId,
+    /// Capture time of the frame, seconds on the source's clock.
+    pub time_s: f64,
+    /// Frame sequence number from the source.
+    pub seq: u64,
+    /// Position in the mission's ENU frame (metres about the datum in [`StatusHeartbeat`]).
+    pub east_m: f64,
+    pub north_m: f64,
+    pub up_m: f64,
+    /// The same position in WGS84.
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub alt_m: f64,
+    /// Heading, counter-clockwise from east (ENU).
+    pub yaw_rad: f64,
+    /// Row-major covariance of (east, north, up, yaw) in m^2, m*rad and rad^2.
+    pub covariance: [[f64; 4]; 4],
+    pub method: PoseMethod,
+    /// Database ids of the towers the fix used.
+    pub towers_used: Vec<String>,
+}
+
+/// One tracked box.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Track {
+    pub track_id: u64,
+    pub bbox: PixelBox,
+    pub tower_type: TowerType,
+    /// Database id of the tower the track is bound to, if any.
+    pub tower_id: Option<String>,
+    /// Whether an operator's correction pinned the binding.
+    pub pinned: bool,
+}
+
+/// All confirmed tracks of one frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrackReport {
+    pub uav: NodeId,
+    pub time_s: f64,
+    pub seq: u64,
+    pub tracks: Vec<Track>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EdgeState {
+    /// Running, no fix yet.
+    Initializing,
+    /// The last frame gave a fix.
+    Localized,
+    /// Towers are out of sight; the last fix is ageing.
+    NoFix,
+}
+
+/// Periodic health of an edge daemon.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StatusHeartbeat {
+    pub uav: NodeId,
+    pub time_s: f64,
+    pub state: EdgeState,
+    pub frames_processed: u64,
+    /// Frames per second over the last heartbeat period.
+    pub frame_rate_hz: f64,
+    pub landmarks_loaded: u32,
+    /// The ENU datum of this UAV's poses.
+    pub datum_lat_deg: f64,
+    pub datum_lon_deg: f64,
+    pub datum_alt_m: f64,
+}
+
+/// An operator's correction: bind `track_id` to `tower_id` (or unbind with `None`) until the track ends.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IdCorrection {
+    pub uav: NodeId,
+    /// Chosen by the sender; echoed in the acknowledgement.
+    pub request_id: u64,
+    pub track_id: u64,
+    pub tower_id: Option<String>,
+    pub issued_by: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CorrectionAck {
+    pub uav: NodeId,
+    pub request_id: u64,
+    pub accepted: bool,
+    /// Why it was refused, when it was.
+    pub reason: Option<String>,
+}
+
+/// A surveyed tower as the database holds it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkRecord {
+    pub id: String,
+    pub tower_type: TowerType,
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    /// Ground elevation at the tower foot, metres above the WGS84 ellipsoid.
+    pub ground_elev_m: f64,
+    /// Height from foot to top, metres.
+    pub height_m: f64,
+    #[serde(default)]
+    pub notes: String,
+    /// Database revision of the last change to this record.
+    #[serde(default)]
+    pub revision: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "op", rename_all = "snake_case")]
+pub enum LandmarkChangeOp {
+    Upsert { record: LandmarkRecord },
+    Remove { id: String },
+}
+
+/// One change of the landmark database, in revision order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkChange {
+    pub revision: u64,
+    pub change: LandmarkChangeOp,
+}
+
+impl Message for PoseEstimate {
+    const KIND: &'static str = "pose";
+}
+impl Message for TrackReport {
+    const KIND: &'static str = "tracks";
+}
+impl Message for StatusHeartbeat {
+    const KIND: &'static str = "status";
+}
+impl Message for IdCorrection {
+    const KIND: &'static str = "id_correction";
+}
+impl Message for CorrectionAck {
+    const KIND: &'static str = "correction_ack";
+}
+impl Message for LandmarkRecord {
+    const KIND: &'static str = "landmark";
+}
+impl Message for LandmarkChange {
+    const KIND: &'static str = "landmark_change";
+}
+
+/// One detector output box: what a detector (real or the simulator's oracle) hands the tracker.
+/// A wire type so detections can be recorded and replayed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection {
+    pub bbox: PixelBox,
+    pub tower_type: TowerType,
+    /// Detector confidence in 0..=1.
+    pub score: f64,
+}
+
+/// Everything the pipeline reads of one camera frame: the detector's boxes and the IMU attitude
+/// at capture time. A wire type so flights can be recorded and replayed without sockets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectionFrame {
+    pub seq: u64,
+    pub time_s: f64,
+    pub imu_attitude: towernav_geometry::Attitude,
+    pub detections: Vec<Detection>,
+}
+
+impl Message for DetectionFrame {
+    const KIND: &'static str = "detection_frame";
+}

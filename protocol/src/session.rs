@@ -1,0 +1,77 @@
+//! The one Zenoh session config every towernav node uses.
+//!
+//! Zenoh's default peer multicasts its scouting and listens on every interface;
+//! towernav turns both off and talks only to the endpoints it is given.
+
+#[derive(Debug, thiserror::Error)]
+pub enum SessionConfigError {
+    #[error("zenoh endpoint {endpoint:?} is not valid: {reason}")]
+    Endpoint { endpoint: String, reason: String },
+    #[error("zenoh config key {key}: {reason}")]
+    Key { key: &'static str, reason: String },
+}
+
+/// Where a node listens and what it connects to, e.g. `tcp/127.0.0.1:7447`.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Endpoints {
+    pub listen: Vec<String>,
+    pub connect: Vec<String>,
+}
+
+/// A peer-mode config with multicast and gossip scouting off and only the given endpoints.
+pub fn session_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionConfigError> {
+    for endpoint in endpoints.listen.iter().chain(&endpoints.connect) {
+        endpoint
+            .parse::<zenoh::config::EndPoint>()
+            .map_err(|e| SessionConfigError::Endpoint {
+                endpoint: endpoint.clone(),
+                reason: e.to_string(),
+            })?;
+    }
+    let mut config = zenoh::Config::default();
+    let json = |v: &[String]| serde_json::to_string(v).unwrap_or_else(|_| "[]".into());
+    let settings: [(&'static str, String); 5] = [
+        ("mode", "\"peer\"".into()),
+        ("scouting/multicast/enabled", "false".into()),
+        ("scouting/gossip/enabled", "false".into()),
+        ("listen/endpoints", json(&endpoints.listen)),
+        ("connect/endpoints", json(&endpoints.connect)),
+    ];
+    for (key, value) in settings {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| SessionConfigError::Key {
+                key,
+                reason: e.to_string(),
+            })?;
+    }
+    Ok(config)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn multicast_is_off_and_endpoints_are_ours() {
+        let config = session_config(&Endpoints {
+            listen: vec!["tcp/127.0.0.1:17447".into()],
+            connect: vec![],
+        })
+        .expect("config");
+        let text = format!("{config}");
+        assert!(text.contains("127.0.0.1:17447"), "{text}");
+        let multicast = config.get_json("scouting/multicast/enabled").expect("key");
+        assert_eq!(multicast, "false");
+    }
+
+    #[test]
+    fn a_bad_endpoint_is_named() {
+        let err = session_config(&Endpoints {
+            listen: vec![],
+            connect: vec!["nonsense".into()],
+        })
+        .expect_err("must refuse");
+        assert!(err.to_string().contains("nonsense"));
+    }
+}

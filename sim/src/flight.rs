@@ -1,0 +1,63 @@
+//! The seed's straight flight through the middle of the field.
+
+use nalgebra::Point3;
+use towernav_geometry::{Attitude, Pose};
+
+/// Constant speed and heading, height above the plate oscillating between
+/// `height_m - height_swing_m` and `height_m + height_swing_m`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StraightFlight {
+    pub start_in_world: Point3<f64>,
+    /// ENU yaw of the track.
+    pub yaw: f64,
+    pub speed_mps: f64,
+    pub duration_s: f64,
+    pub height_m: f64,
+    pub height_swing_m: f64,
+    pub swing_period_s: f64,
+}
+
+impl StraightFlight {
+    /// East along the plate's centre line, 30 +/- 5 m high, 10 m/s for 95 s.
+    pub fn seed_centre_line() -> Self {
+        Self {
+            start_in_world: Point3::new(0.0, 250.0, 30.0),
+            yaw: 0.0,
+            speed_mps: 10.0,
+            duration_s: 95.0,
+            height_m: 30.0,
+            height_swing_m: 5.0,
+            swing_period_s: 40.0,
+        }
+    }
+
+    pub fn pose_at(&self, t: f64) -> Pose {
+        let along = self.speed_mps * t;
+        let swing = self.height_swing_m * (std::f64::consts::TAU * t / self.swing_period_s).sin();
+        Pose {
+            position_in_world: Point3::new(
+                self.start_in_world.x + along * self.yaw.cos(),
+                self.start_in_world.y + along * self.yaw.sin(),
+                self.height_m + swing,
+            ),
+            attitude: Attitude::level(self.yaw),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_centre_line_flight_stays_in_the_seed_envelope() {
+        let flight = StraightFlight::seed_centre_line();
+        for i in 0..=950 {
+            let p = flight.pose_at(i as f64 * 0.1).position_in_world;
+            assert!((20.0..=40.0).contains(&p.z), "height {}", p.z);
+            assert!((p.y - 250.0).abs() < 1e-9);
+        }
+        let end = flight.pose_at(95.0).position_in_world;
+        assert!((end.x - 950.0).abs() < 1e-9);
+    }
+}
