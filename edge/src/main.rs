@@ -1,1 +1,159 @@
-fn main() {}
+//! `towernav-edge`: the onboard daemon. Today its frame source is the simulator.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use towernav_edge::LandmarkMap;
+use towernav_edge::report::FlightReport;
+use towernav_edge::shell::collector::{PoseCollector, wait_for_peer};
+use towernav_edge::shell::landmarks_source::load_landmarks;
+use towernav_edge::shell::node::{EdgeNode, open_session};
+use towernav_edge::shell::sim_flight::{FlightRecord, SimFlightOptions, fly};
+use towernav_protocol::NodeId;
+use towernav_protocol::session::Endpoints;
+use towernav_sim::Scenario;
+
+#[derive(Parser)]
+#[command(about = "towernav edge daemon: landmark localization from a forward camera")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Fly the simulated seed flight through the pipeline and publish over Zenoh.
+    Run(RunArgs),
+    /// Run the flight with a listener on loopback and print the accuracy report.
+    Demo(RunArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[arg(long, default_value = "demo")]
+    fleet: NodeId,
+    #[arg(long, default_value = "uav1")]
+    uav: NodeId,
+    /// Zenoh endpoint to listen on (ground stations connect here).
+    #[arg(long, default_value = "tcp/127.0.0.1:7447")]
+    listen: Vec<String>,
+    /// Zenoh endpoint to connect to, e.g. a router (repeatable).
+    #[arg(long)]
+    connect: Vec<String>,
+    /// Simulation seed: detector noise, misses, false positives, IMU noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Playback speed relative to real time; 0 runs as fast as possible.
+    #[arg(long, default_value_t = 4.0)]
+    speed: f64,
+    /// Landmarks to localize against (.csv or a landmark database); default: the simulated world's.
+    #[arg(long)]
+    landmarks: Option<PathBuf>,
+}
+
+fn main() -> anyhow::Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "warn,towernav=info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    runtime.block_on(async {
+        match cli.command {
+            Command::Run(args) => run(args, false).await,
+            Command::Demo(args) => run(args, true).await,
+        }
+    })
+}
+
+async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
+    let scenario = Scenario::seed(args.seed);
+    let records = match &args.landmarks {
+        Some(path) => load_landmarks(path)?,
+        None => scenario.world.landmarks(),
+    };
+    let map = LandmarkMap::from_records(&records, &scenario.world.datum);
+    let endpoints = Endpoints {
+        listen: args.listen.clone(),
+        connect: args.connect.clone(),
+    };
+    let session = open_session(&endpoints).await?;
+    let node = EdgeNode::new(session, args.fleet.clone(), args.uav.clone()).await?;
+
+    let listener = if demo {
+        let connect = args
+            .listen
+            .first()
+            .cloned()
+            .context("the demo needs a --listen endpoint to listen on")?;
+        let session = open_session(&Endpoints {
+            listen: vec![],
+            connect: vec![connect],
+        })
+        .await?;
+        let collector = PoseCollector::start(&session, args.fleet.clone()).await?;
+        wait_for_peer(&session, Duration::from_secs(10)).await?;
+        Some((session, collector))
+    } else {
+        None
+    };
+
+    println!(
+        "towernav edge: fleet {} uav {} on {:?}",
+        args.fleet, args.uav, args.listen
+    );
+    println!(
+        "watch live: in another terminal run `cargo run --release -p towernav-ground-station -- --connect {}`",
+        args.listen
+            .first()
+            .map_or("tcp/127.0.0.1:7447", String::as_str)
+    );
+    println!(
+        "            (the ground station reconnects on its own; run the demo with --speed 1 for real time)"
+    );
+
+    let bar = ProgressBar::new(scenario.frame_count());
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} flying [{bar:40}] {pos}/{len} frames {per_sec} eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    let options = SimFlightOptions {
+        speed: (args.speed > 0.0).then_some(args.speed),
+        ..SimFlightOptions::default()
+    };
+    let record: FlightRecord = fly(&node, &scenario, map, options, |n| bar.set_position(n)).await?;
+    bar.finish_and_clear();
+
+    if let Some((_session, collector)) = listener {
+        let received = collector
+            .drain(record.poses_published as usize, Duration::from_secs(3))
+            .await;
+        if collector.rejected() > 0 {
+            println!("warning: {} poses did not decode", collector.rejected());
+        }
+        let report = FlightReport::new(&record, &received, scenario.fps);
+        println!(
+            "\ntowernav demo report (seed field, 18 towers, seed {})\n{report}",
+            args.seed
+        );
+    } else {
+        println!(
+            "flew {} frames, published {} poses",
+            record.frames, record.poses_published
+        );
+    }
+    Ok(())
+}

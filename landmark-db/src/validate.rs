@@ -79,7 +79,8 @@ mod tests {
 
     #[test]
     fn each_bad_field_is_named() {
-        let cases: [(&str, fn(&mut LandmarkRecord)); 5] = [
+        type Spoil = fn(&mut LandmarkRecord);
+        let cases: [(&str, Spoil); 5] = [
             ("id", |r| r.id = "a b".into()),
             ("lat_deg", |r| r.lat_deg = 95.0),
             ("lon_deg", |r| r.lon_deg = f64::NAN),

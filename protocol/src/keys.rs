@@ -93,6 +93,11 @@ impl Keys {
         format!("{ROOT}/{}/uav/*/{}", self.fleet, topic.as_str())
     }
 
+    /// Every per-UAV key of the fleet, whatever the topic.
+    pub fn all_uavs_any_topic(&self) -> String {
+        format!("{ROOT}/{}/uav/*/*", self.fleet)
+    }
+
     pub fn landmark_changes(&self) -> String {
         format!("{ROOT}/{}/landmarks/changes", self.fleet)
     }

@@ -18,7 +18,8 @@ pub struct Endpoints {
     pub connect: Vec<String>,
 }
 
-/// A peer-mode config with multicast and gossip scouting off and only the given endpoints.
+/// A peer-mode config with multicast scouting off and only the given endpoints.
+/// (Gossip stays on: it travels over links we opened, and zenoh needs it to de-duplicate.)
 pub fn session_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionConfigError> {
     for endpoint in endpoints.listen.iter().chain(&endpoints.connect) {
         endpoint
@@ -30,10 +31,9 @@ pub fn session_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionCon
     }
     let mut config = zenoh::Config::default();
     let json = |v: &[String]| serde_json::to_string(v).unwrap_or_else(|_| "[]".into());
-    let settings: [(&'static str, String); 5] = [
+    let settings: [(&'static str, String); 4] = [
         ("mode", "\"peer\"".into()),
         ("scouting/multicast/enabled", "false".into()),
-        ("scouting/gossip/enabled", "false".into()),
         ("listen/endpoints", json(&endpoints.listen)),
         ("connect/endpoints", json(&endpoints.connect)),
     ];

@@ -78,15 +78,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_seed_flight_has_towers_in_view_most_of_the_time() {
+    fn towers_are_in_view_until_the_uav_passes_the_last_ones() {
         let scenario = Scenario::seed(0);
         let frames: Vec<_> = scenario.frames().collect();
         assert_eq!(frames.len(), 2850);
-        let with_towers = frames.iter().filter(|(t, _)| !t.boxes.is_empty()).count();
-        assert!(
-            with_towers as f64 > 0.95 * frames.len() as f64,
-            "{with_towers}"
-        );
+        for (truth, _) in &frames {
+            let east = truth.pose.position_in_world.x;
+            if east < 850.0 {
+                assert!(
+                    !truth.boxes.is_empty(),
+                    "no tower in view at east {east:.0} m"
+                );
+            }
+        }
+        let last = &frames[frames.len() - 1].0;
+        assert!(last.boxes.is_empty(), "every tower is behind at the end");
     }
 
     #[test]

@@ -1,1 +1,154 @@
-fn main() {}
+//! `cargo xtask demo | gs | test`: the project's two front doors, plus the ground station.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, bail};
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(about = "towernav project tasks")]
+struct Cli {
+    #[command(subcommand)]
+    task: Task,
+}
+
+#[derive(Subcommand)]
+enum Task {
+    /// Fly the simulated seed flight through the whole chain and print the report.
+    Demo {
+        /// Playback speed relative to real time (0: as fast as possible; 1 to watch live).
+        #[arg(long, default_value_t = 4.0)]
+        speed: f64,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Open the ground station on the demo's towers, connected to the demo's edge.
+    Gs,
+    /// Formatting, lints and every test: what CI runs.
+    Test,
+}
+
+fn main() -> anyhow::Result<()> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .context("xtask lives one level below the workspace root")?
+        .to_path_buf();
+    match Cli::parse().task {
+        Task::Demo { speed, seed } => demo(&root, speed, seed),
+        Task::Gs => ground_station(&root),
+        Task::Test => test(&root),
+    }
+}
+
+fn target_dir(root: &Path) -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from)
+}
+
+fn cargo(root: &Path, args: &[&str]) -> anyhow::Result<()> {
+    run(
+        Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+            .args(args)
+            .current_dir(root),
+    )
+}
+
+fn run(cmd: &mut Command) -> anyhow::Result<()> {
+    eprintln!("xtask: {cmd:?}");
+    let status = cmd.status().with_context(|| format!("starting {cmd:?}"))?;
+    if !status.success() {
+        bail!("{cmd:?} failed with {status}");
+    }
+    Ok(())
+}
+
+/// Makes sure rustfmt and clippy are there; a fresh rustup toolchain may lack them.
+fn ensure_components() -> anyhow::Result<()> {
+    let installed = Command::new("rustup")
+        .args(["component", "list", "--installed"])
+        .output();
+    let Ok(out) = installed else {
+        return Ok(()); // No rustup: trust the toolchain as it is.
+    };
+    let list = String::from_utf8_lossy(&out.stdout);
+    for component in ["rustfmt", "clippy"] {
+        if !list.lines().any(|l| l.starts_with(component)) {
+            run(Command::new("rustup").args(["component", "add", component]))?;
+        }
+    }
+    Ok(())
+}
+
+fn demo(root: &Path, speed: f64, seed: u64) -> anyhow::Result<()> {
+    cargo(
+        root,
+        &[
+            "build",
+            "--release",
+            "-p",
+            "towernav-edge",
+            "-p",
+            "towernav-sim",
+        ],
+    )?;
+    let bin = target_dir(root).join("release");
+    let demo_dir = target_dir(root).join("demo");
+    std::fs::create_dir_all(&demo_dir)
+        .with_context(|| format!("creating {}", demo_dir.display()))?;
+    let towers = demo_dir.join("towers.csv");
+    run(Command::new(bin.join("towernav-sim"))
+        .arg("world")
+        .arg("--out")
+        .arg(&towers))?;
+    run(Command::new(bin.join("towernav-edge"))
+        .args([
+            "demo",
+            "--speed",
+            &speed.to_string(),
+            "--seed",
+            &seed.to_string(),
+        ])
+        .arg("--landmarks")
+        .arg(&towers))
+}
+
+fn ground_station(root: &Path) -> anyhow::Result<()> {
+    let demo_dir = target_dir(root).join("demo");
+    let towers = demo_dir.join("towers.csv");
+    if !towers.exists() {
+        bail!(
+            "{} is missing: run `cargo xtask demo` once first",
+            towers.display()
+        );
+    }
+    cargo(
+        root,
+        &["build", "--release", "-p", "towernav-ground-station"],
+    )?;
+    let db = demo_dir.join("towers.sqlite");
+    let mut cmd = Command::new(target_dir(root).join("release").join("towernav-gs"));
+    cmd.arg("--db")
+        .arg(&db)
+        .args(["--connect", "tcp/127.0.0.1:7447"]);
+    if !db.exists() {
+        cmd.arg("--import").arg(&towers);
+    }
+    run(&mut cmd)
+}
+
+fn test(root: &Path) -> anyhow::Result<()> {
+    ensure_components()?;
+    cargo(root, &["fmt", "--all", "--", "--check"])?;
+    cargo(
+        root,
+        &[
+            "clippy",
+            "--workspace",
+            "--all-targets",
+            "--",
+            "-D",
+            "warnings",
+        ],
+    )?;
+    cargo(root, &["test", "--workspace"])
+}

@@ -1,1 +1,9 @@
+//! The imperative shell: Zenoh sessions, clocks and pacing around the pure core.
 
+pub mod collector;
+pub mod error;
+pub mod landmarks_source;
+pub mod node;
+pub mod sim_flight;
+
+pub use error::ShellError;

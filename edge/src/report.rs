@@ -1,0 +1,89 @@
+//! The demo's closing report: what went in, what came out over Zenoh, and how right it was.
+
+use std::fmt;
+
+use towernav_protocol::PoseEstimate;
+
+use crate::shell::sim_flight::FlightRecord;
+use crate::sim_eval::{ErrorStats, error_stats};
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlightReport {
+    pub frames: u64,
+    pub flight_seconds: f64,
+    pub core_rate_hz: f64,
+    pub wall_rate_hz: f64,
+    pub poses_published: u64,
+    pub poses_received: usize,
+    /// Horizontal error of the poses that arrived, against truth at their frame.
+    pub horizontal: ErrorStats,
+    pub frames_with_tracks: usize,
+    pub binding_share: f64,
+}
+
+impl FlightReport {
+    pub fn new(record: &FlightRecord, received: &[PoseEstimate], fps: f64) -> Self {
+        let errors: Vec<f64> = received
+            .iter()
+            .filter_map(|p| {
+                let (e, n) = *record.truth_en.get(usize::try_from(p.seq).ok()?)?;
+                Some(((p.east_m - e).powi(2) + (p.north_m - n).powi(2)).sqrt())
+            })
+            .collect();
+        let right = record.binding_right.iter().filter(|r| **r).count();
+        let rate = |secs: f64| {
+            if secs > 0.0 {
+                record.frames as f64 / secs
+            } else {
+                0.0
+            }
+        };
+        Self {
+            frames: record.frames,
+            flight_seconds: record.frames as f64 / fps,
+            core_rate_hz: rate(record.core_seconds),
+            wall_rate_hz: rate(record.wall_seconds),
+            poses_published: record.poses_published,
+            poses_received: received.len(),
+            horizontal: error_stats(&errors),
+            frames_with_tracks: record.binding_right.len(),
+            binding_share: if record.binding_right.is_empty() {
+                0.0
+            } else {
+                right as f64 / record.binding_right.len() as f64
+            },
+        }
+    }
+}
+
+impl fmt::Display for FlightReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let h = &self.horizontal;
+        writeln!(
+            f,
+            "frames             {} ({:.1} s of flight)",
+            self.frames, self.flight_seconds
+        )?;
+        writeln!(
+            f,
+            "processing rate    {:.0} frames/s in the pipeline core (one thread), {:.0} frames/s end to end",
+            self.core_rate_hz, self.wall_rate_hz
+        )?;
+        writeln!(
+            f,
+            "poses              {} published, {} received over Zenoh",
+            self.poses_published, self.poses_received
+        )?;
+        writeln!(
+            f,
+            "horizontal error   RMS {:.2} m, p95 {:.2} m, max {:.2} m (over {} received poses)",
+            h.rms, h.p95, h.max, h.count
+        )?;
+        write!(
+            f,
+            "tower identity     {:.1} % of {} frames with tracks had every track bound to its true tower",
+            100.0 * self.binding_share,
+            self.frames_with_tracks
+        )
+    }
+}

@@ -1,0 +1,121 @@
+//! An edge's presence on Zenoh: publishes poses, tracks and status; receives corrections.
+
+use towernav_protocol::session::{Endpoints, session_config};
+use towernav_protocol::{
+    CorrectionAck, IdCorrection, Keys, Message, NodeId, PoseEstimate, StatusHeartbeat, Topic,
+    TrackReport, decode, encode,
+};
+use zenoh::Session;
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::sample::Sample;
+
+use super::ShellError;
+
+pub async fn open_session(endpoints: &Endpoints) -> Result<Session, ShellError> {
+    let config = session_config(endpoints)?;
+    zenoh::open(config)
+        .await
+        .map_err(|e| ShellError::zenoh(format!("opening session {endpoints:?}"), e))
+}
+
+pub struct EdgeNode {
+    session: Session,
+    uav: NodeId,
+    keys: Keys,
+    pose: Publisher<'static>,
+    tracks: Publisher<'static>,
+    status: Publisher<'static>,
+    corrections: Subscriber<FifoChannelHandler<Sample>>,
+}
+
+impl EdgeNode {
+    pub async fn new(session: Session, fleet: NodeId, uav: NodeId) -> Result<Self, ShellError> {
+        let keys = Keys::new(fleet);
+        let publisher = |topic| {
+            let key = keys.uav(&uav, topic);
+            let session = session.clone();
+            async move {
+                session
+                    .declare_publisher(key.clone())
+                    .await
+                    .map_err(|e| ShellError::zenoh(format!("declaring publisher {key}"), e))
+            }
+        };
+        let pose = publisher(Topic::Pose).await?;
+        let tracks = publisher(Topic::Tracks).await?;
+        let status = publisher(Topic::Status).await?;
+        let correction_key = keys.uav(&uav, Topic::Correction);
+        let corrections = session
+            .declare_subscriber(correction_key.clone())
+            .await
+            .map_err(|e| ShellError::zenoh(format!("subscribing {correction_key}"), e))?;
+        Ok(Self {
+            session,
+            uav,
+            keys,
+            pose,
+            tracks,
+            status,
+            corrections,
+        })
+    }
+
+    pub fn uav(&self) -> &NodeId {
+        &self.uav
+    }
+
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    async fn put<M: Message>(
+        publisher: &Publisher<'static>,
+        message: &M,
+    ) -> Result<(), ShellError> {
+        let bytes = encode(message)?;
+        publisher
+            .put(bytes)
+            .await
+            .map_err(|e| ShellError::zenoh(format!("publishing on {}", publisher.key_expr()), e))
+    }
+
+    pub async fn publish_pose(&self, pose: &PoseEstimate) -> Result<(), ShellError> {
+        Self::put(&self.pose, pose).await
+    }
+
+    pub async fn publish_tracks(&self, tracks: &TrackReport) -> Result<(), ShellError> {
+        Self::put(&self.tracks, tracks).await
+    }
+
+    pub async fn publish_status(&self, status: &StatusHeartbeat) -> Result<(), ShellError> {
+        Self::put(&self.status, status).await
+    }
+
+    /// Corrections that arrived since the last call. A payload that does not decode
+    /// is logged with its key and dropped: there is no request id to refuse it by.
+    pub fn pending_corrections(&self) -> Vec<IdCorrection> {
+        let mut out = Vec::new();
+        while let Ok(Some(sample)) = self.corrections.try_recv() {
+            match decode::<IdCorrection>(&sample.payload().to_bytes()) {
+                Ok(c) if c.uav == self.uav => out.push(c),
+                Ok(c) => {
+                    tracing::warn!(key = %sample.key_expr(), uav = %c.uav, "correction for another UAV ignored")
+                }
+                Err(e) => {
+                    tracing::warn!(key = %sample.key_expr(), error = %e, "undecodable correction")
+                }
+            }
+        }
+        out
+    }
+
+    pub async fn acknowledge(&self, ack: &CorrectionAck) -> Result<(), ShellError> {
+        let key = self.keys.uav(&self.uav, Topic::CorrectionAck);
+        let bytes = encode(ack)?;
+        self.session
+            .put(key.clone(), bytes)
+            .await
+            .map_err(|e| ShellError::zenoh(format!("publishing on {key}"), e))
+    }
+}

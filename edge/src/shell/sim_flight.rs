@@ -1,0 +1,132 @@
+//! Flies a simulated scenario through the pipeline and out over Zenoh.
+
+use std::time::{Duration, Instant};
+
+use nalgebra::Vector3;
+use towernav_protocol::{CorrectionAck, EdgeState, StatusHeartbeat};
+use towernav_sim::Scenario;
+
+use super::ShellError;
+use super::node::EdgeNode;
+use crate::landmarks::LandmarkMap;
+use crate::pipeline::{Pipeline, PipelineConfig};
+use crate::sim_eval::all_bound_right;
+use crate::wire::{pose_estimate, track_report};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimFlightOptions {
+    /// Playback speed relative to real time; `None` runs as fast as it can.
+    pub speed: Option<f64>,
+    /// How far the assumed take-off position is from the true one, metres (east, north).
+    pub takeoff_error_m: (f64, f64),
+    /// Stop after this many frames (the whole flight if `None`).
+    pub max_frames: Option<u64>,
+}
+
+impl Default for SimFlightOptions {
+    fn default() -> Self {
+        Self {
+            speed: None,
+            takeoff_error_m: (3.0, -4.0),
+            max_frames: None,
+        }
+    }
+}
+
+/// What happened, frame by frame, for the report.
+#[derive(Debug, Clone, Default)]
+pub struct FlightRecord {
+    pub frames: u64,
+    pub poses_published: u64,
+    /// Seconds spent in the pure pipeline, summed.
+    pub core_seconds: f64,
+    pub wall_seconds: f64,
+    /// Per frame with tracks: whether every track was bound to its true tower.
+    pub binding_right: Vec<bool>,
+    /// True horizontal position per frame, for scoring received poses by `seq`.
+    pub truth_en: Vec<(f64, f64)>,
+}
+
+pub async fn fly(
+    node: &EdgeNode,
+    scenario: &Scenario,
+    map: LandmarkMap,
+    options: SimFlightOptions,
+    mut on_frame: impl FnMut(u64),
+) -> Result<FlightRecord, ShellError> {
+    let start = scenario.flight.start_in_world;
+    let takeoff = start + Vector3::new(options.takeoff_error_m.0, options.takeoff_error_m.1, 0.0);
+    let mut pipeline = Pipeline::new(PipelineConfig::new(scenario.camera, takeoff), map);
+    let datum = scenario.world.datum;
+    let mut record = FlightRecord::default();
+    let wall = Instant::now();
+    let mut last_status = Instant::now() - Duration::from_secs(10);
+    let mut frames_since_status = 0u64;
+
+    for (truth, frame) in scenario
+        .frames()
+        .take(options.max_frames.unwrap_or(u64::MAX) as usize)
+    {
+        if let Some(speed) = options.speed.filter(|s| *s > 0.0) {
+            let due = Duration::from_secs_f64(frame.time_s / speed);
+            if let Some(wait) = due.checked_sub(wall.elapsed()) {
+                tokio::time::sleep(wait).await;
+            }
+        }
+        for correction in node.pending_corrections() {
+            let result = pipeline.pin(correction.track_id, correction.tower_id.as_deref());
+            tracing::info!(track = correction.track_id, tower = ?correction.tower_id, ok = result.is_ok(), "operator correction");
+            node.acknowledge(&CorrectionAck {
+                uav: node.uav().clone(),
+                request_id: correction.request_id,
+                accepted: result.is_ok(),
+                reason: result.err(),
+            })
+            .await?;
+        }
+
+        let t0 = Instant::now();
+        let out = pipeline.process(&frame);
+        record.core_seconds += t0.elapsed().as_secs_f64();
+
+        if let Some(fix) = &out.fix {
+            node.publish_pose(&pose_estimate(node.uav(), &out, fix, &datum))
+                .await?;
+            record.poses_published += 1;
+        }
+        node.publish_tracks(&track_report(node.uav(), &out, pipeline.map()))
+            .await?;
+        if let Some(right) = all_bound_right(&truth, &out, pipeline.map()) {
+            record.binding_right.push(right);
+        }
+        let p = truth.pose.position_in_world;
+        record.truth_en.push((p.x, p.y));
+        record.frames += 1;
+        frames_since_status += 1;
+
+        if last_status.elapsed() >= Duration::from_secs(1) {
+            let rate = frames_since_status as f64 / last_status.elapsed().as_secs_f64().min(10.0);
+            node.publish_status(&StatusHeartbeat {
+                uav: node.uav().clone(),
+                time_s: frame.time_s,
+                state: match (&out.fix, record.poses_published) {
+                    (Some(_), _) => EdgeState::Localized,
+                    (None, 0) => EdgeState::Initializing,
+                    (None, _) => EdgeState::NoFix,
+                },
+                frames_processed: record.frames,
+                frame_rate_hz: rate,
+                landmarks_loaded: pipeline.map().towers.len() as u32,
+                datum_lat_deg: datum.origin.lat_deg,
+                datum_lon_deg: datum.origin.lon_deg,
+                datum_alt_m: datum.origin.height_m,
+            })
+            .await?;
+            last_status = Instant::now();
+            frames_since_status = 0;
+        }
+        on_frame(record.frames);
+    }
+    record.wall_seconds = wall.elapsed().as_secs_f64();
+    Ok(record)
+}
