@@ -112,14 +112,15 @@ async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
         "towernav edge: fleet {} uav {} on {:?}",
         args.fleet, args.uav, args.listen
     );
+    let endpoint = args
+        .listen
+        .first()
+        .map_or("tcp/127.0.0.1:7447", String::as_str);
     println!(
-        "watch live: in another terminal run `cargo run --release -p towernav-ground-station -- --connect {}`",
-        args.listen
-            .first()
-            .map_or("tcp/127.0.0.1:7447", String::as_str)
+        "watch live: `cargo xtask gs` in another terminal, or `towernav-gs --db <towers.sqlite> --connect {endpoint}`"
     );
     println!(
-        "            (the ground station reconnects on its own; run the demo with --speed 1 for real time)"
+        "            (start it before or after the edge; `--speed 1` plays the flight in real time)"
     );
 
     let bar = ProgressBar::new(scenario.frame_count());

@@ -210,63 +210,19 @@ fn tower_marker(t: TowerType) -> MarkerShape {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use crate::fleet::NetEvent;
+    use crate::test_support::{app, pose};
     use egui_kittest::Harness;
     use egui_kittest::kittest::Queryable;
-    use std::sync::mpsc::channel;
-    use towernav_protocol::{EdgeState, NodeId, PoseEstimate, PoseMethod, StatusHeartbeat};
+    use towernav_protocol::{EdgeState, Keys, NodeId, StatusHeartbeat, Topic};
 
-    fn towers() -> Vec<LandmarkRecord> {
-        ["A1", "B1"]
-            .iter()
-            .enumerate()
-            .map(|(i, id)| LandmarkRecord {
-                id: (*id).into(),
-                tower_type: TowerType::ALL[i],
-                lat_deg: 30.52 + i as f64 * 0.001,
-                lon_deg: 114.36,
-                ground_elev_m: 25.0,
-                height_m: 35.0,
-                notes: String::new(),
-                revision: 1,
-            })
-            .collect()
-    }
-
-    fn pose(uav: &str) -> PoseEstimate {
-        PoseEstimate {
-            uav: NodeId::new(uav).expect("valid"),
-            time_s: 1.0,
-            seq: 30,
-            east_m: 0.0,
-            north_m: 0.0,
-            up_m: 30.0,
-            lat_deg: 30.5205,
-            lon_deg: 114.3601,
-            alt_m: 55.0,
-            yaw_rad: 0.0,
-            covariance: [
-                [4.0, 0.0, 0.0, 0.0],
-                [0.0, 5.0, 0.0, 0.0],
-                [0.0, 0.0, 1.0, 0.0],
-                [0.0, 0.0, 0.0, 0.0],
-            ],
-            method: PoseMethod::SeedLbl,
-            towers_used: vec!["A1".into(), "B1".into()],
-        }
-    }
+    use super::GsApp;
 
     #[test]
     fn shows_each_uav_with_the_age_of_its_last_pose() {
-        let (tx, rx) = channel();
-        let landmarks = towers();
-        let app = GsApp::new(
-            &landmarks,
-            map_datum(&landmarks).expect("towers"),
-            rx,
-            "tcp/127.0.0.1:7447".into(),
-        );
-        tx.send(NetEvent::Pose(pose("uav1"))).expect("send");
+        let (tx, app) = app();
+        tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 30)))
+            .expect("send");
         tx.send(NetEvent::Status(StatusHeartbeat {
             uav: NodeId::new("uav1").expect("valid"),
             time_s: 1.0,
@@ -298,18 +254,9 @@ mod tests {
 
     #[test]
     fn an_empty_fleet_says_where_it_listens_and_shows_rejections() {
-        let (tx, rx) = channel();
-        let landmarks = towers();
-        let app = GsApp::new(
-            &landmarks,
-            map_datum(&landmarks).expect("towers"),
-            rx,
-            "tcp/127.0.0.1:7447".into(),
-        );
-        let key = towernav_protocol::Keys::new(NodeId::new("demo").expect("valid")).uav(
-            &NodeId::new("u").expect("valid"),
-            towernav_protocol::Topic::Pose,
-        );
+        let (tx, app) = app();
+        let key = Keys::new(NodeId::new("demo").expect("valid"))
+            .uav(&NodeId::new("u").expect("valid"), Topic::Pose);
         tx.send(NetEvent::Rejected {
             key,
             error: "schema 2".into(),

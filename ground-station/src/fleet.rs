@@ -94,25 +94,7 @@ impl Fleet {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use towernav_protocol::PoseMethod;
-
-    pub(crate) fn pose(uav: &str, lat: f64, lon: f64, seq: u64) -> PoseEstimate {
-        PoseEstimate {
-            uav: NodeId::new(uav).expect("valid"),
-            time_s: 0.0,
-            seq,
-            east_m: 0.0,
-            north_m: 0.0,
-            up_m: 30.0,
-            lat_deg: lat,
-            lon_deg: lon,
-            alt_m: 55.0,
-            yaw_rad: 0.0,
-            covariance: [[0.0; 4]; 4],
-            method: PoseMethod::SeedLbl,
-            towers_used: vec!["A1".into()],
-        }
-    }
+    use crate::test_support::pose;
 
     #[test]
     fn poses_build_a_trail_in_the_map_frame_and_an_age() {

@@ -6,3 +6,5 @@
 pub mod app;
 pub mod fleet;
 pub mod net;
+#[cfg(test)]
+mod test_support;

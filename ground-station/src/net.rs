@@ -17,7 +17,9 @@ pub fn spawn(
     std::thread::Builder::new()
         .name("towernav-gs-net".into())
         .spawn(move || {
-            let result = tokio::runtime::Builder::new_current_thread()
+            // Zenoh needs tokio's multi-thread scheduler; one worker is plenty here.
+            let result = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(1)
                 .enable_all()
                 .build()
                 .map_err(|e| format!("starting tokio: {e}"))
