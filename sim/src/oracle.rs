@@ -3,7 +3,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
+use rand_distr::StandardNormal;
 use towernav_geometry::PixelBox;
 use towernav_protocol::{Detection, TowerType};
 
@@ -36,17 +36,13 @@ impl Default for OracleParams {
 pub struct OracleDetector {
     params: OracleParams,
     rng: ChaCha8Rng,
-    noise: Normal<f64>,
 }
 
 impl OracleDetector {
     pub fn new(params: OracleParams, seed: u64) -> Self {
-        let noise = Normal::new(0.0, params.edge_sigma_px.max(0.0))
-            .unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sigma is a valid normal"));
         Self {
             params,
             rng: ChaCha8Rng::seed_from_u64(seed),
-            noise,
         }
     }
 
@@ -58,7 +54,8 @@ impl OracleDetector {
             {
                 continue;
             }
-            let mut jitter = || self.noise.sample(&mut self.rng);
+            let sigma = self.params.edge_sigma_px.max(0.0);
+            let mut jitter = || sigma * self.rng.sample::<f64, _>(StandardNormal);
             let bbox = PixelBox::new(
                 b.bbox.left + jitter(),
                 b.bbox.top + jitter(),

@@ -1,8 +1,9 @@
 //! A world, a flight and a camera: everything needed to replay a simulated flight frame by frame.
 
+use rand::Rng;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
+use rand_distr::StandardNormal;
 use towernav_geometry::PinholeCamera;
 use towernav_protocol::DetectionFrame;
 
@@ -50,7 +51,7 @@ impl Scenario {
     pub fn frames(&self) -> impl Iterator<Item = (FrameTruth, DetectionFrame)> + '_ {
         let mut oracle = OracleDetector::new(self.oracle, self.seed);
         let mut imu_rng = ChaCha8Rng::seed_from_u64(self.seed ^ 0x1_0000);
-        let yaw_noise = Normal::new(0.0, self.imu_yaw_sigma.max(0.0)).ok();
+        let yaw_sigma = self.imu_yaw_sigma.max(0.0);
         let (w, h) = (
             f64::from(self.camera.intrinsics.width),
             f64::from(self.camera.intrinsics.height),
@@ -59,9 +60,7 @@ impl Scenario {
             let truth = self.truth(seq);
             let detections = oracle.detect(&truth, w, h);
             let mut imu_attitude = truth.pose.attitude;
-            if let Some(noise) = &yaw_noise {
-                imu_attitude.yaw += noise.sample(&mut imu_rng);
-            }
+            imu_attitude.yaw += yaw_sigma * imu_rng.sample::<f64, _>(StandardNormal);
             let input = DetectionFrame {
                 seq,
                 time_s: truth.time_s,

@@ -75,9 +75,12 @@ async fn poses_and_rejections_reach_the_ui_channel() -> anyhow::Result<()> {
     }
     assert_eq!(got_pose.as_ref(), Some(&pose));
 
-    edge.put(key.clone(), br#"{"schema": 9, "kind": "pose", "body": {}}"#.to_vec())
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    edge.put(
+        key.clone(),
+        br#"{"schema": 9, "kind": "pose", "body": {}}"#.to_vec(),
+    )
+    .await
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
     loop {
         match events.recv_timeout(Duration::from_secs(5))? {
             NetEvent::Pose(_) => continue, // stragglers from the loop above
