@@ -7,7 +7,7 @@ use anyhow::Context;
 use clap::Parser;
 use towernav_ground_station::app::{GsApp, map_datum};
 use towernav_ground_station::net;
-use towernav_landmark_db::{LandmarkDb, import_csv};
+use towernav_landmark_db::{Author, LandmarkDb, import_csv};
 use towernav_protocol::NodeId;
 use towernav_protocol::session::Endpoints;
 
@@ -28,6 +28,9 @@ struct Cli {
     /// Zenoh endpoint to listen on, for edges that connect to the ground station.
     #[arg(long)]
     listen: Vec<String>,
+    /// Name stamped on database changes made from this ground station.
+    #[arg(long, env = "USER", default_value = "ground-station")]
+    operator: String,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -40,7 +43,7 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let mut db = LandmarkDb::open(&cli.db)?;
     if let Some(csv) = &cli.import {
-        let n = import_csv(&mut db, csv)?;
+        let n = import_csv(&mut db, csv, &Author::now(&cli.operator))?;
         tracing::info!(towers = n, file = %csv.display(), "imported");
     }
     let landmarks = db.list()?;

@@ -34,15 +34,15 @@ pub fn towers() -> Vec<LandmarkRecord> {
     ["A1", "B1"]
         .iter()
         .enumerate()
-        .map(|(i, id)| LandmarkRecord {
-            id: (*id).into(),
-            tower_type: TowerType::ALL[i],
-            lat_deg: 30.52 + i as f64 * 0.001,
-            lon_deg: 114.36,
-            ground_elev_m: 25.0,
-            height_m: 35.0,
-            notes: String::new(),
-            revision: 1,
+        .map(|(i, id)| {
+            LandmarkRecord::new(
+                *id,
+                TowerType::ALL[i],
+                30.52 + i as f64 * 0.001,
+                114.36,
+                25.0,
+                35.0,
+            )
         })
         .collect()
 }

@@ -1,5 +1,8 @@
-//! CSV exchange. Columns: `id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m,notes`
-//! (`notes` optional); heights in metres above the WGS84 ellipsoid.
+//! CSV exchange; the columns and units are in the README. Required:
+//! `id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m`; optional (empty cell: unknown):
+//! `base_width_m,line_name,survey_source,sigma_horizontal_m,sigma_vertical_m,notes`.
+//! Export adds `updated_at_unix_s,updated_by,revision`, which import ignores:
+//! the database stamps its own.
 
 use std::fmt;
 use std::io::{Read, Write};
@@ -8,18 +11,26 @@ use std::path::Path;
 use towernav_protocol::LandmarkRecord;
 
 use crate::error::ImportError;
-use crate::store::LandmarkDb;
+use crate::store::{Author, LandmarkDb};
 use crate::validate::validate;
 
-pub const COLUMNS: [&str; 7] = [
+pub const REQUIRED: [&str; 6] = [
     "id",
     "tower_type",
     "lat_deg",
     "lon_deg",
     "ground_elev_m",
     "height_m",
+];
+pub const OPTIONAL: [&str; 6] = [
+    "base_width_m",
+    "line_name",
+    "survey_source",
+    "sigma_horizontal_m",
+    "sigma_vertical_m",
     "notes",
 ];
+pub const BOOKKEEPING: [&str; 3] = ["updated_at_unix_s", "updated_by", "revision"];
 
 /// One rejected row: where it is, which record, which field, and why.
 #[derive(Debug, Clone, PartialEq)]
@@ -55,16 +66,16 @@ pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, Imp
         .clone();
     let column = |name: &str| headers.iter().position(|h| h == name);
     let mut index = [0usize; 6];
-    for (slot, name) in index.iter_mut().zip(COLUMNS) {
+    for (slot, name) in index.iter_mut().zip(REQUIRED) {
         *slot = column(name).ok_or_else(|| ImportError::Read {
             file: file.into(),
             reason: format!(
                 "missing column {name:?} (header must have {})",
-                COLUMNS.join(",")
+                REQUIRED.join(",")
             ),
         })?;
     }
-    let notes = column("notes");
+    let optional: [Option<usize>; 6] = OPTIONAL.map(column);
 
     let mut records = Vec::new();
     let mut problems = Vec::new();
@@ -94,20 +105,40 @@ pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, Imp
         let number = |i: usize| -> Result<f64, RowProblem> {
             cell(index[i])
                 .parse::<f64>()
-                .map_err(|_| problem(COLUMNS[i], format!("{:?} is not a number", cell(index[i]))))
+                .map_err(|_| problem(REQUIRED[i], format!("{:?} is not a number", cell(index[i]))))
+        };
+        let text = |k: usize| {
+            optional[k]
+                .map(cell)
+                .filter(|v| !v.is_empty())
+                .map(str::to_owned)
+        };
+        let maybe_number = |k: usize| -> Result<Option<f64>, RowProblem> {
+            text(k)
+                .map(|v| {
+                    v.parse::<f64>()
+                        .map_err(|_| problem(OPTIONAL[k], format!("{v:?} is not a number")))
+                })
+                .transpose()
         };
         let parsed = (|| {
             Ok(LandmarkRecord {
-                id: id.clone(),
-                tower_type: cell(index[1])
-                    .parse()
-                    .map_err(|e| problem("tower_type", e))?,
-                lat_deg: number(2)?,
-                lon_deg: number(3)?,
-                ground_elev_m: number(4)?,
-                height_m: number(5)?,
-                notes: notes.map(|i| cell(i).to_string()).unwrap_or_default(),
-                revision: 0,
+                base_width_m: maybe_number(0)?,
+                line_name: text(1),
+                survey_source: text(2),
+                sigma_horizontal_m: maybe_number(3)?,
+                sigma_vertical_m: maybe_number(4)?,
+                notes: text(5).unwrap_or_default(),
+                ..LandmarkRecord::new(
+                    id.clone(),
+                    cell(index[1])
+                        .parse()
+                        .map_err(|e| problem("tower_type", e))?,
+                    number(2)?,
+                    number(3)?,
+                    number(4)?,
+                    number(5)?,
+                )
             })
         })();
         let record = match parsed.and_then(|r| {
@@ -138,20 +169,22 @@ pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, Imp
 }
 
 /// Imports a CSV file all-or-nothing: one bad row refuses the whole file and leaves the database as it was.
-pub fn import_csv(db: &mut LandmarkDb, path: &Path) -> Result<usize, ImportError> {
+pub fn import_csv(db: &mut LandmarkDb, path: &Path, author: &Author) -> Result<usize, ImportError> {
     let file = path.display().to_string();
     let input = std::fs::File::open(path).map_err(|e| ImportError::Read {
         file: file.clone(),
         reason: e.to_string(),
     })?;
     let records = read_csv(input, &file)?;
-    db.upsert_all(&records)?;
+    db.upsert_all(&records, author)?;
     Ok(records.len())
 }
 
 pub fn export_csv(records: &[LandmarkRecord], output: impl Write) -> Result<(), csv::Error> {
     let mut writer = csv::Writer::from_writer(output);
-    writer.write_record(COLUMNS)?;
+    writer.write_record(REQUIRED.iter().chain(&OPTIONAL).chain(&BOOKKEEPING))?;
+    let opt =
+        |v: Option<f64>, decimals: usize| v.map_or(String::new(), |v| format!("{v:.decimals$}"));
     for r in records {
         writer.write_record([
             r.id.clone(),
@@ -160,7 +193,15 @@ pub fn export_csv(records: &[LandmarkRecord], output: impl Write) -> Result<(), 
             format!("{:.9}", r.lon_deg),
             format!("{:.3}", r.ground_elev_m),
             format!("{:.3}", r.height_m),
+            opt(r.base_width_m, 3),
+            r.line_name.clone().unwrap_or_default(),
+            r.survey_source.clone().unwrap_or_default(),
+            opt(r.sigma_horizontal_m, 3),
+            opt(r.sigma_vertical_m, 3),
             r.notes.clone(),
+            r.updated_at_unix_s.to_string(),
+            r.updated_by.clone(),
+            r.revision.to_string(),
         ])?;
     }
     writer.flush()?;
@@ -214,10 +255,11 @@ mod tests {
             rows in proptest::collection::vec((0usize..4, -89.0f64..89.0, -179.0f64..179.0, -100.0f64..3000.0, 1.0f64..150.0, "[a-z ,\"]{0,12}"), 1..20)
         ) {
             let records: Vec<LandmarkRecord> = rows.into_iter().enumerate().map(|(i, (t, lat, lon, elev, h, notes))| LandmarkRecord {
-                id: format!("T{i}"),
-                tower_type: TowerType::ALL[t],
-                lat_deg: lat, lon_deg: lon, ground_elev_m: elev, height_m: h,
-                notes: notes.trim().to_string(), revision: 0,
+                notes: notes.trim().to_string(),
+                base_width_m: (i % 2 == 0).then_some(h / 5.0),
+                line_name: (i % 3 == 0).then(|| format!("line, \"{i}\"")),
+                sigma_vertical_m: (i % 2 == 1).then_some(0.25),
+                ..LandmarkRecord::new(format!("T{i}"), TowerType::ALL[t], lat, lon, elev, h)
             }).collect();
             let mut out = Vec::new();
             export_csv(&records, &mut out).expect("export");
@@ -227,6 +269,9 @@ mod tests {
                 prop_assert_eq!(&a.id, &b.id);
                 prop_assert_eq!(a.tower_type, b.tower_type);
                 prop_assert_eq!(&a.notes, &b.notes);
+                prop_assert_eq!(&a.line_name, &b.line_name);
+                prop_assert_eq!(a.sigma_vertical_m, b.sigma_vertical_m);
+                prop_assert_eq!(a.base_width_m.is_some(), b.base_width_m.is_some());
                 prop_assert!((a.lat_deg - b.lat_deg).abs() < 1e-8 && (a.lon_deg - b.lon_deg).abs() < 1e-8);
                 prop_assert!((a.height_m - b.height_m).abs() < 1e-3 && (a.ground_elev_m - b.ground_elev_m).abs() < 1e-3);
             }

@@ -13,5 +13,5 @@ pub use towernav_geometry::geodesy;
 
 pub use csv_io::{RowProblem, export_csv, import_csv, read_csv};
 pub use error::{DbError, ImportError};
-pub use store::LandmarkDb;
+pub use store::{Author, LandmarkDb};
 pub use validate::{ValidationError, validate};

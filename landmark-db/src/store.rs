@@ -1,15 +1,16 @@
-//! SQLite storage: WAL, synchronous=FULL, one transaction per write, versioned schema.
+//! SQLite storage: WAL, synchronous=FULL, one transaction per write, versioned
+//! schema, a revision per change and a change log that replicas replay.
 
 use std::path::Path;
 
 use rusqlite::{Connection, OptionalExtension, Transaction, params};
-use towernav_protocol::{LandmarkRecord, TowerType};
+use towernav_protocol::{LandmarkChange, LandmarkChangeOp, LandmarkRecord, TowerType};
 
 use crate::error::DbError;
 use crate::validate::validate;
 
 /// Each entry moves the schema from version `i` to `i + 1`; never edit a shipped one.
-const MIGRATIONS: &[&str] = &[
+pub(crate) const MIGRATIONS: &[&str] = &[
     // 0 -> 1: landmarks and the database-wide revision counter.
     "CREATE TABLE landmarks (
         id            TEXT PRIMARY KEY NOT NULL,
@@ -23,12 +24,60 @@ const MIGRATIONS: &[&str] = &[
     );
     CREATE TABLE meta (key TEXT PRIMARY KEY NOT NULL, value INTEGER NOT NULL);
     INSERT INTO meta (key, value) VALUES ('revision', 0);",
+    // 1 -> 2: optional survey fields, who and when, and the change log.
+    "ALTER TABLE landmarks ADD COLUMN base_width_m REAL;
+    ALTER TABLE landmarks ADD COLUMN line_name TEXT;
+    ALTER TABLE landmarks ADD COLUMN survey_source TEXT;
+    ALTER TABLE landmarks ADD COLUMN sigma_horizontal_m REAL;
+    ALTER TABLE landmarks ADD COLUMN sigma_vertical_m REAL;
+    ALTER TABLE landmarks ADD COLUMN updated_at_unix_s INTEGER NOT NULL DEFAULT 0;
+    ALTER TABLE landmarks ADD COLUMN updated_by TEXT NOT NULL DEFAULT '';
+    CREATE TABLE changes (
+        revision          INTEGER PRIMARY KEY NOT NULL,
+        id                TEXT NOT NULL,
+        op                TEXT NOT NULL CHECK (op IN ('upsert', 'remove')),
+        record            TEXT,
+        updated_at_unix_s INTEGER NOT NULL,
+        updated_by        TEXT NOT NULL
+    );
+    -- v1 rows enter the log as upserts at their own revision, so that
+    -- 'changes since 0' rebuilds the current set.
+    INSERT INTO changes (revision, id, op, record, updated_at_unix_s, updated_by)
+        SELECT revision, id, 'upsert',
+               json_object('id', id, 'tower_type', tower_type, 'lat_deg', lat_deg,
+                           'lon_deg', lon_deg, 'ground_elev_m', ground_elev_m,
+                           'height_m', height_m, 'notes', notes, 'revision', revision),
+               0, 'migration v2'
+        FROM landmarks;",
 ];
+
+/// Who writes, and when: stamped on every record and change.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Author {
+    pub by: String,
+    pub at_unix_s: i64,
+}
+
+impl Author {
+    /// `by` at the current wall-clock time.
+    pub fn now(by: impl Into<String>) -> Self {
+        let at_unix_s = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs() as i64);
+        Self {
+            by: by.into(),
+            at_unix_s,
+        }
+    }
+}
 
 pub struct LandmarkDb {
     conn: Connection,
     path: String,
 }
+
+const COLUMNS: &str = "id, tower_type, lat_deg, lon_deg, ground_elev_m, height_m, base_width_m, line_name, \
+     survey_source, sigma_horizontal_m, sigma_vertical_m, notes, updated_at_unix_s, updated_by, revision";
 
 impl LandmarkDb {
     pub fn open(path: &Path) -> Result<Self, DbError> {
@@ -56,6 +105,9 @@ impl LandmarkDb {
         conn.pragma_update(None, "journal_mode", "WAL")
             .map_err(sql)?;
         conn.pragma_update(None, "synchronous", "FULL")
+            .map_err(sql)?;
+        // A second writer (CLI beside the ground station) waits rather than fails.
+        conn.busy_timeout(std::time::Duration::from_secs(5))
             .map_err(sql)?;
         let version: i64 = conn
             .pragma_query_value(None, "user_version", |row| row.get(0))
@@ -107,8 +159,12 @@ impl LandmarkDb {
     }
 
     /// Validates and writes every record in one transaction: all of them or none.
-    /// Each record gets its own revision. Returns the last revision.
-    pub fn upsert_all(&mut self, records: &[LandmarkRecord]) -> Result<u64, DbError> {
+    /// Each record gets its own revision and change-log entry. Returns the last revision.
+    pub fn upsert_all(
+        &mut self,
+        records: &[LandmarkRecord],
+        author: &Author,
+    ) -> Result<u64, DbError> {
         for r in records {
             validate(r)?;
         }
@@ -119,32 +175,71 @@ impl LandmarkDb {
         };
         let tx = self.conn.transaction().map_err(sql)?;
         let mut revision = current_revision(&tx).map_err(sql)?;
-        for r in records {
-            revision += 1;
-            tx.execute(
-                "INSERT INTO landmarks (id, tower_type, lat_deg, lon_deg, ground_elev_m, height_m, notes, revision)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)
-                 ON CONFLICT(id) DO UPDATE SET tower_type = ?2, lat_deg = ?3, lon_deg = ?4,
-                     ground_elev_m = ?5, height_m = ?6, notes = ?7, revision = ?8",
-                params![r.id, r.tower_type.as_str(), r.lat_deg, r.lon_deg, r.ground_elev_m, r.height_m, r.notes, revision as i64],
-            )
-            .map_err(sql)?;
+        {
+            let mut upsert = tx
+                .prepare_cached(&format!(
+                    "INSERT OR REPLACE INTO landmarks ({COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)"
+                ))
+                .map_err(sql)?;
+            let mut log = tx
+                .prepare_cached(
+                    "INSERT INTO changes (revision, id, op, record, updated_at_unix_s, updated_by) VALUES (?1, ?2, 'upsert', ?3, ?4, ?5)",
+                )
+                .map_err(sql)?;
+            for r in records {
+                revision += 1;
+                let stored = LandmarkRecord {
+                    updated_at_unix_s: author.at_unix_s,
+                    updated_by: author.by.clone(),
+                    revision,
+                    ..r.clone()
+                };
+                upsert
+                    .execute(params![
+                        stored.id,
+                        stored.tower_type.as_str(),
+                        stored.lat_deg,
+                        stored.lon_deg,
+                        stored.ground_elev_m,
+                        stored.height_m,
+                        stored.base_width_m,
+                        stored.line_name,
+                        stored.survey_source,
+                        stored.sigma_horizontal_m,
+                        stored.sigma_vertical_m,
+                        stored.notes,
+                        stored.updated_at_unix_s,
+                        stored.updated_by,
+                        revision as i64
+                    ])
+                    .map_err(sql)?;
+                let json = serde_json::to_string(&stored).map_err(|e| DbError::Corrupt {
+                    path: path.clone(),
+                    id: stored.id.clone(),
+                    field: "record",
+                    reason: e.to_string(),
+                })?;
+                log.execute(params![
+                    revision as i64,
+                    stored.id,
+                    json,
+                    author.at_unix_s,
+                    author.by
+                ])
+                .map_err(sql)?;
+            }
         }
-        tx.execute(
-            "UPDATE meta SET value = ?1 WHERE key = 'revision'",
-            [revision as i64],
-        )
-        .map_err(sql)?;
+        set_revision(&tx, revision).map_err(sql)?;
         tx.commit().map_err(sql)?;
         Ok(revision)
     }
 
-    pub fn upsert(&mut self, record: &LandmarkRecord) -> Result<u64, DbError> {
-        self.upsert_all(std::slice::from_ref(record))
+    pub fn upsert(&mut self, record: &LandmarkRecord, author: &Author) -> Result<u64, DbError> {
+        self.upsert_all(std::slice::from_ref(record), author)
     }
 
     /// Removes a tower; `Ok(None)` if there was none by that id.
-    pub fn remove(&mut self, id: &str) -> Result<Option<u64>, DbError> {
+    pub fn remove(&mut self, id: &str, author: &Author) -> Result<Option<u64>, DbError> {
         let path = self.path.clone();
         let sql = |source| DbError::Sqlite {
             path: path.clone(),
@@ -160,10 +255,11 @@ impl LandmarkDb {
         }
         let revision = current_revision(&tx).map_err(sql)? + 1;
         tx.execute(
-            "UPDATE meta SET value = ?1 WHERE key = 'revision'",
-            [revision as i64],
+            "INSERT INTO changes (revision, id, op, record, updated_at_unix_s, updated_by) VALUES (?1, ?2, 'remove', NULL, ?3, ?4)",
+            params![revision as i64, id, author.at_unix_s, author.by],
         )
         .map_err(sql)?;
+        set_revision(&tx, revision).map_err(sql)?;
         tx.commit().map_err(sql)?;
         Ok(Some(revision))
     }
@@ -171,7 +267,11 @@ impl LandmarkDb {
     pub fn get(&self, id: &str) -> Result<Option<LandmarkRecord>, DbError> {
         let row = self
             .conn
-            .query_row(&format!("{SELECT} WHERE id = ?1"), [id], raw_row)
+            .query_row(
+                &format!("SELECT {COLUMNS} FROM landmarks WHERE id = ?1"),
+                [id],
+                raw_row,
+            )
             .optional()
             .map_err(self.sql())?;
         row.map(|raw| self.decode(raw)).transpose()
@@ -181,7 +281,7 @@ impl LandmarkDb {
     pub fn list(&self) -> Result<Vec<LandmarkRecord>, DbError> {
         let mut stmt = self
             .conn
-            .prepare(&format!("{SELECT} ORDER BY id"))
+            .prepare(&format!("SELECT {COLUMNS} FROM landmarks ORDER BY id"))
             .map_err(self.sql())?;
         let raws = stmt
             .query_map([], raw_row)
@@ -189,6 +289,52 @@ impl LandmarkDb {
             .collect::<Result<Vec<_>, _>>()
             .map_err(self.sql())?;
         raws.into_iter().map(|raw| self.decode(raw)).collect()
+    }
+
+    /// Every change after `revision`, in revision order: what a replica at `revision` needs.
+    pub fn changes_since(&self, revision: u64) -> Result<Vec<LandmarkChange>, DbError> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT revision, id, op, record FROM changes WHERE revision > ?1 ORDER BY revision")
+            .map_err(self.sql())?;
+        let rows = stmt
+            .query_map([revision as i64], |r| {
+                Ok((
+                    r.get::<_, i64>(0)?,
+                    r.get::<_, String>(1)?,
+                    r.get::<_, String>(2)?,
+                    r.get::<_, Option<String>>(3)?,
+                ))
+            })
+            .map_err(self.sql())?
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(self.sql())?;
+        rows.into_iter()
+            .map(|(rev, id, op, record)| {
+                let corrupt = |reason: String| DbError::Corrupt {
+                    path: self.path.clone(),
+                    id: id.clone(),
+                    field: "change",
+                    reason,
+                };
+                let change = match (op.as_str(), record) {
+                    ("remove", _) => LandmarkChangeOp::Remove { id: id.clone() },
+                    ("upsert", Some(json)) => LandmarkChangeOp::Upsert {
+                        record: serde_json::from_str(&json)
+                            .map_err(|e| corrupt(format!("revision {rev}: {e}")))?,
+                    },
+                    (op, _) => {
+                        return Err(corrupt(format!(
+                            "revision {rev}: op {op:?} without a record"
+                        )));
+                    }
+                };
+                Ok(LandmarkChange {
+                    revision: rev as u64,
+                    change,
+                })
+            })
+            .collect()
     }
 
     fn decode(&self, raw: RawRow) -> Result<LandmarkRecord, DbError> {
@@ -205,8 +351,6 @@ impl LandmarkDb {
     }
 }
 
-const SELECT: &str = "SELECT id, tower_type, lat_deg, lon_deg, ground_elev_m, height_m, notes, revision FROM landmarks";
-
 /// A row before its tower type is checked (SQLite cannot hold our enum).
 struct RawRow {
     record: LandmarkRecord,
@@ -217,14 +361,23 @@ fn raw_row(row: &rusqlite::Row<'_>) -> rusqlite::Result<RawRow> {
     Ok(RawRow {
         tower_type: row.get(1)?,
         record: LandmarkRecord {
-            id: row.get(0)?,
-            tower_type: TowerType::A,
-            lat_deg: row.get(2)?,
-            lon_deg: row.get(3)?,
-            ground_elev_m: row.get(4)?,
-            height_m: row.get(5)?,
-            notes: row.get(6)?,
-            revision: row.get::<_, i64>(7)? as u64,
+            base_width_m: row.get(6)?,
+            line_name: row.get(7)?,
+            survey_source: row.get(8)?,
+            sigma_horizontal_m: row.get(9)?,
+            sigma_vertical_m: row.get(10)?,
+            notes: row.get(11)?,
+            updated_at_unix_s: row.get(12)?,
+            updated_by: row.get(13)?,
+            revision: row.get::<_, i64>(14)? as u64,
+            ..LandmarkRecord::new(
+                row.get::<_, String>(0)?,
+                TowerType::A,
+                row.get(2)?,
+                row.get(3)?,
+                row.get(4)?,
+                row.get(5)?,
+            )
         },
     })
 }
@@ -236,55 +389,97 @@ fn current_revision(tx: &Transaction<'_>) -> rusqlite::Result<u64> {
     .map(|v| v as u64)
 }
 
+fn set_revision(tx: &Transaction<'_>, revision: u64) -> rusqlite::Result<()> {
+    tx.execute(
+        "UPDATE meta SET value = ?1 WHERE key = 'revision'",
+        [revision as i64],
+    )
+    .map(|_| ())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     pub(crate) fn tower(id: &str, height_m: f64) -> LandmarkRecord {
         LandmarkRecord {
-            id: id.into(),
-            tower_type: TowerType::B,
-            lat_deg: 30.5,
-            lon_deg: 114.3,
-            ground_elev_m: 20.0,
-            height_m,
             notes: "survey 2026".into(),
-            revision: 0,
+            sigma_horizontal_m: Some(0.05),
+            ..LandmarkRecord::new(id, TowerType::B, 30.5, 114.3, 20.0, height_m)
+        }
+    }
+
+    fn surveyor() -> Author {
+        Author {
+            by: "crew-7".into(),
+            at_unix_s: 1_790_000_000,
         }
     }
 
     #[test]
     fn upsert_get_list_remove_bump_revisions() {
         let mut db = LandmarkDb::open_in_memory().expect("open");
+        let me = surveyor();
         assert_eq!(db.revision().expect("rev"), 0);
-        assert_eq!(db.upsert(&tower("B1", 35.0)).expect("upsert"), 1);
-        assert_eq!(db.upsert(&tower("B1", 36.0)).expect("upsert"), 2);
+        assert_eq!(db.upsert(&tower("B1", 35.0), &me).expect("upsert"), 1);
+        assert_eq!(db.upsert(&tower("B1", 36.0), &me).expect("upsert"), 2);
         let got = db.get("B1").expect("get").expect("present");
         assert_eq!(got.height_m, 36.0);
         assert_eq!(got.revision, 2);
+        assert_eq!(got.updated_by, "crew-7");
+        assert_eq!(got.sigma_horizontal_m, Some(0.05));
         assert_eq!(
-            db.upsert_all(&[tower("B2", 30.0), tower("A0", 31.0)])
+            db.upsert_all(&[tower("B2", 30.0), tower("A0", 31.0)], &me)
                 .expect("batch"),
             4
         );
         let ids: Vec<_> = db.list().expect("list").into_iter().map(|r| r.id).collect();
         assert_eq!(ids, ["A0", "B1", "B2"]);
-        assert_eq!(db.remove("B2").expect("remove"), Some(5));
-        assert_eq!(db.remove("B2").expect("remove"), None);
+        assert_eq!(db.remove("B2", &me).expect("remove"), Some(5));
+        assert_eq!(db.remove("B2", &me).expect("remove"), None);
         assert_eq!(db.revision().expect("rev"), 5);
+    }
+
+    #[test]
+    fn the_change_log_replays_to_the_current_set() {
+        let mut db = LandmarkDb::open_in_memory().expect("open");
+        let me = surveyor();
+        db.upsert_all(&[tower("B1", 35.0), tower("B2", 30.0)], &me)
+            .expect("batch");
+        db.upsert(&tower("B1", 37.0), &me).expect("edit");
+        db.remove("B2", &me).expect("remove");
+        let changes = db.changes_since(0).expect("log");
+        assert_eq!(
+            changes.iter().map(|c| c.revision).collect::<Vec<_>>(),
+            [1, 2, 3, 4]
+        );
+        assert!(matches!(&changes[3].change, LandmarkChangeOp::Remove { id } if id == "B2"));
+        let mut replica = std::collections::BTreeMap::new();
+        for c in changes {
+            match c.change {
+                LandmarkChangeOp::Upsert { record } => replica.insert(record.id.clone(), record),
+                LandmarkChangeOp::Remove { id } => replica.remove(&id),
+            };
+        }
+        assert_eq!(
+            replica.into_values().collect::<Vec<_>>(),
+            db.list().expect("list")
+        );
+        assert_eq!(db.changes_since(3).expect("tail").len(), 1);
     }
 
     #[test]
     fn an_invalid_record_in_a_batch_writes_nothing() {
         let mut db = LandmarkDb::open_in_memory().expect("open");
         let err = db
-            .upsert_all(&[tower("B1", 35.0), tower("B2", -1.0)])
+            .upsert_all(&[tower("B1", 35.0), tower("B2", -1.0)], &surveyor())
             .expect_err("must refuse");
         assert!(
             err.to_string().contains("B2") && err.to_string().contains("height_m"),
             "{err}"
         );
         assert!(db.list().expect("list").is_empty());
+        assert!(db.changes_since(0).expect("log").is_empty());
         assert_eq!(db.revision().expect("rev"), 0);
     }
 
@@ -294,7 +489,7 @@ mod tests {
         let path = dir.path().join("towers.sqlite");
         {
             let mut db = LandmarkDb::open(&path).expect("open");
-            db.upsert(&tower("B1", 35.0)).expect("upsert");
+            db.upsert(&tower("B1", 35.0), &surveyor()).expect("upsert");
             let mode: String = db
                 .conn
                 .pragma_query_value(None, "journal_mode", |r| r.get(0))
@@ -302,8 +497,53 @@ mod tests {
             assert_eq!(mode, "wal");
         }
         let db = LandmarkDb::open(&path).expect("reopen");
-        assert_eq!(db.schema_version().expect("version"), 1);
+        assert_eq!(
+            db.schema_version().expect("version"),
+            MIGRATIONS.len() as i64
+        );
         assert_eq!(db.list().expect("list").len(), 1);
+    }
+
+    /// Builds a database as each earlier schema version left it, then opens it with this build.
+    #[test]
+    fn migrates_from_every_earlier_schema_version() {
+        for from in 0..MIGRATIONS.len() {
+            let dir = tempfile::tempdir().expect("tempdir");
+            let path = dir.path().join(format!("v{from}.sqlite"));
+            {
+                let conn = Connection::open(&path).expect("open");
+                for m in &MIGRATIONS[..from] {
+                    conn.execute_batch(m).expect("old migration");
+                }
+                conn.pragma_update(None, "user_version", from as i64)
+                    .expect("version");
+                if from == 1 {
+                    conn.execute_batch(
+                        "INSERT INTO landmarks (id, tower_type, lat_deg, lon_deg, ground_elev_m, height_m, notes, revision)
+                         VALUES ('A1', 'A', 30.5, 114.3, 20.0, 32.0, 'from v1', 1);
+                         UPDATE meta SET value = 1 WHERE key = 'revision';",
+                    )
+                    .expect("v1 row");
+                }
+            }
+            let db = LandmarkDb::open(&path).expect("migrate");
+            assert_eq!(
+                db.schema_version().expect("version"),
+                MIGRATIONS.len() as i64,
+                "from v{from}"
+            );
+            if from == 1 {
+                let a1 = db.get("A1").expect("get").expect("kept");
+                assert_eq!(
+                    (a1.notes.as_str(), a1.height_m, a1.revision, a1.base_width_m),
+                    ("from v1", 32.0, 1, None)
+                );
+                let log = db.changes_since(0).expect("backfilled log");
+                assert!(
+                    matches!(&log[..], [LandmarkChange { revision: 1, change: LandmarkChangeOp::Upsert { record } }] if *record == a1)
+                );
+            }
+        }
     }
 
     #[test]

@@ -51,6 +51,21 @@ pub fn validate(r: &LandmarkRecord) -> Result<(), ValidationError> {
             format!("{} is outside 0..={MAX_HEIGHT_M} m", r.height_m),
         );
     }
+    let optional = [
+        ("base_width_m", r.base_width_m, 50.0),
+        ("sigma_horizontal_m", r.sigma_horizontal_m, 100.0),
+        ("sigma_vertical_m", r.sigma_vertical_m, 100.0),
+    ];
+    for (field, value, max) in optional {
+        if let Some(v) = value
+            && !(v.is_finite() && (0.0..=max).contains(&v))
+        {
+            return err(field, format!("{v} is outside 0..={max} m"));
+        }
+    }
+    if r.base_width_m == Some(0.0) {
+        return err("base_width_m", "is zero; leave it empty if unknown".into());
+    }
     Ok(())
 }
 
@@ -61,14 +76,9 @@ mod tests {
 
     fn good() -> LandmarkRecord {
         LandmarkRecord {
-            id: "A1".into(),
-            tower_type: TowerType::A,
-            lat_deg: 30.5,
-            lon_deg: 114.3,
-            ground_elev_m: 20.0,
-            height_m: 35.0,
-            notes: String::new(),
-            revision: 0,
+            base_width_m: Some(7.0),
+            sigma_horizontal_m: Some(0.05),
+            ..LandmarkRecord::new("A1", TowerType::A, 30.5, 114.3, 20.0, 35.0)
         }
     }
 
@@ -80,12 +90,17 @@ mod tests {
     #[test]
     fn each_bad_field_is_named() {
         type Spoil = fn(&mut LandmarkRecord);
-        let cases: [(&str, Spoil); 5] = [
+        let cases: [(&str, Spoil); 8] = [
             ("id", |r| r.id = "a b".into()),
             ("lat_deg", |r| r.lat_deg = 95.0),
             ("lon_deg", |r| r.lon_deg = f64::NAN),
             ("ground_elev_m", |r| r.ground_elev_m = 1e6),
             ("height_m", |r| r.height_m = -3.0),
+            ("base_width_m", |r| r.base_width_m = Some(0.0)),
+            ("sigma_horizontal_m", |r| r.sigma_horizontal_m = Some(-1.0)),
+            ("sigma_vertical_m", |r| {
+                r.sigma_vertical_m = Some(f64::INFINITY)
+            }),
         ];
         for (field, spoil) in cases {
             let mut r = good();

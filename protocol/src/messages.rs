@@ -150,6 +150,9 @@ pub struct CorrectionAck {
 }
 
 /// A surveyed tower as the database holds it.
+///
+/// Heights are metres; `ground_elev_m` is the foot's height above the WGS84
+/// ellipsoid (not above mean sea level: convert survey orthometric heights first).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LandmarkRecord {
     pub id: String,
@@ -160,11 +163,62 @@ pub struct LandmarkRecord {
     pub ground_elev_m: f64,
     /// Height from foot to top, metres.
     pub height_m: f64,
+    /// Side of the square base, metres.
+    #[serde(default)]
+    pub base_width_m: Option<f64>,
+    /// The power line the tower carries, e.g. "220kV Xinjin II".
+    #[serde(default)]
+    pub line_name: Option<String>,
+    /// Where the position came from, e.g. "RTK 2026-05", "OSM", "drawing".
+    #[serde(default)]
+    pub survey_source: Option<String>,
+    /// One-sigma horizontal accuracy of the surveyed foot, metres.
+    #[serde(default)]
+    pub sigma_horizontal_m: Option<f64>,
+    /// One-sigma vertical accuracy of foot elevation and height, metres.
+    #[serde(default)]
+    pub sigma_vertical_m: Option<f64>,
     #[serde(default)]
     pub notes: String,
-    /// Database revision of the last change to this record.
+    /// Unix seconds of the last change; set by the database.
+    #[serde(default)]
+    pub updated_at_unix_s: i64,
+    /// Who made the last change; set by the database from the writer's name.
+    #[serde(default)]
+    pub updated_by: String,
+    /// Database revision of the last change to this record; set by the database.
     #[serde(default)]
     pub revision: u64,
+}
+
+impl LandmarkRecord {
+    /// A record with the required survey fields and no optional ones.
+    pub fn new(
+        id: impl Into<String>,
+        tower_type: TowerType,
+        lat_deg: f64,
+        lon_deg: f64,
+        ground_elev_m: f64,
+        height_m: f64,
+    ) -> Self {
+        Self {
+            id: id.into(),
+            tower_type,
+            lat_deg,
+            lon_deg,
+            ground_elev_m,
+            height_m,
+            base_width_m: None,
+            line_name: None,
+            survey_source: None,
+            sigma_horizontal_m: None,
+            sigma_vertical_m: None,
+            notes: String::new(),
+            updated_at_unix_s: 0,
+            updated_by: String::new(),
+            revision: 0,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

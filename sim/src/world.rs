@@ -83,14 +83,18 @@ impl World {
             .map(|t| {
                 let g = self.datum.to_geodetic(&t.foot_in_world);
                 LandmarkRecord {
-                    id: t.id.clone(),
-                    tower_type: t.tower_type,
-                    lat_deg: g.lat_deg,
-                    lon_deg: g.lon_deg,
-                    ground_elev_m: g.height_m,
-                    height_m: t.height_m,
-                    notes: "towernav-sim seed field".into(),
-                    revision: 0,
+                    base_width_m: Some(t.base_width_m),
+                    survey_source: Some("towernav-sim seed field".into()),
+                    sigma_horizontal_m: Some(0.0),
+                    sigma_vertical_m: Some(0.0),
+                    ..LandmarkRecord::new(
+                        &t.id,
+                        t.tower_type,
+                        g.lat_deg,
+                        g.lon_deg,
+                        g.height_m,
+                        t.height_m,
+                    )
                 }
             })
             .collect()

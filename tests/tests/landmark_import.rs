@@ -1,7 +1,7 @@
 //! A landmark CSV with one bad row is refused whole: the row and field are named and
 //! the database is left exactly as it was.
 
-use towernav_landmark_db::{ImportError, LandmarkDb, export_csv, import_csv};
+use towernav_landmark_db::{Author, ImportError, LandmarkDb, export_csv, import_csv};
 use towernav_sim::World;
 
 #[test]
@@ -10,7 +10,11 @@ fn one_bad_row_refuses_the_file_and_changes_nothing() -> anyhow::Result<()> {
     let db_path = dir.path().join("towers.sqlite");
     let mut db = LandmarkDb::open(&db_path)?;
     let world = World::seed_field();
-    db.upsert(&world.landmarks()[0])?;
+    let crew = Author {
+        by: "survey crew".into(),
+        at_unix_s: 1_790_000_000,
+    };
+    db.upsert(&world.landmarks()[0], &crew)?;
     let before = (db.list()?, db.revision()?);
 
     let mut csv = Vec::new();
@@ -27,7 +31,7 @@ fn one_bad_row_refuses_the_file_and_changes_nothing() -> anyhow::Result<()> {
     let file = dir.path().join("survey.csv");
     std::fs::write(&file, text)?;
 
-    let err = import_csv(&mut db, &file).expect_err("a bad row must refuse the import");
+    let err = import_csv(&mut db, &file, &crew).expect_err("a bad row must refuse the import");
     let ImportError::Rejected { problems, .. } = &err else {
         panic!("unexpected error {err}")
     };
@@ -43,5 +47,10 @@ fn one_bad_row_refuses_the_file_and_changes_nothing() -> anyhow::Result<()> {
     drop(db);
     let db = LandmarkDb::open(&db_path)?;
     assert_eq!((db.list()?, db.revision()?), before);
+    assert_eq!(
+        db.changes_since(0)?.len(),
+        1,
+        "the refused import left no change"
+    );
     Ok(())
 }
