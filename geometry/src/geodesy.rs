@@ -44,6 +44,19 @@ impl Geodetic {
     }
 }
 
+impl Geodetic {
+    /// Earth-centred, Earth-fixed position, metres: one frame valid anywhere, for spatial indexing.
+    pub fn to_ecef(&self) -> [f64; 3] {
+        let (x, y, z) = map_3d::geodetic2ecef(
+            self.lat_deg.to_radians(),
+            self.lon_deg.to_radians(),
+            self.height_m,
+            Ellipsoid::WGS84,
+        );
+        [x, y, z]
+    }
+}
+
 /// The origin of a local ENU world frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Datum {
@@ -112,6 +125,15 @@ mod tests {
         let enu = datum.to_enu(&Geodetic::new(0.0, 0.001, 0.0).expect("valid"));
         assert!((enu.x - 111.31949).abs() < 1e-3, "east {}", enu.x);
         assert!(enu.y.abs() < 1e-6);
+    }
+
+    /// WGS84: a = 6378137 m on the equator, b = 6356752.3142 m at the pole.
+    #[test]
+    fn ecef_of_the_equator_and_the_pole() {
+        let e = Geodetic::new(0.0, 90.0, 0.0).expect("valid").to_ecef();
+        assert!(e[0].abs() < 1e-6 && (e[1] - 6_378_137.0).abs() < 1e-6 && e[2].abs() < 1e-6);
+        let p = Geodetic::new(90.0, 0.0, 0.0).expect("valid").to_ecef();
+        assert!((p[2] - 6_356_752.3142).abs() < 1e-3, "{p:?}");
     }
 
     #[test]

@@ -11,6 +11,7 @@ use std::path::Path;
 use towernav_protocol::LandmarkRecord;
 
 use crate::error::ImportError;
+use crate::import::{Format, ImportOptions, Parsed, import_file};
 use crate::store::{Author, LandmarkDb};
 use crate::validate::validate;
 
@@ -53,7 +54,9 @@ impl fmt::Display for RowProblem {
 }
 
 /// Parses and validates every row; returns all records or every problem found.
-pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, ImportError> {
+/// Parses and validates every row; records and problems both come back.
+/// Fails whole only when the file cannot be read as CSV at all.
+pub fn parse_csv(input: impl Read, file: &str) -> Result<Parsed, ImportError> {
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(input);
@@ -158,26 +161,18 @@ pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, Imp
         }
         records.push(record);
     }
-    if problems.is_empty() {
-        Ok(records)
-    } else {
-        Err(ImportError::Rejected {
-            file: file.into(),
-            problems,
-        })
-    }
+    Ok(Parsed { records, problems })
+}
+
+/// All rows or an error listing every bad one.
+pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, ImportError> {
+    parse_csv(input, file)?.all_or_nothing(file)
 }
 
 /// Imports a CSV file all-or-nothing: one bad row refuses the whole file and leaves the database as it was.
 pub fn import_csv(db: &mut LandmarkDb, path: &Path, author: &Author) -> Result<usize, ImportError> {
-    let file = path.display().to_string();
-    let input = std::fs::File::open(path).map_err(|e| ImportError::Read {
-        file: file.clone(),
-        reason: e.to_string(),
-    })?;
-    let records = read_csv(input, &file)?;
-    db.upsert_all(&records, author)?;
-    Ok(records.len())
+    let report = import_file(db, path, Format::Csv, &ImportOptions::default(), author)?;
+    Ok(report.imported)
 }
 
 pub fn export_csv(records: &[LandmarkRecord], output: impl Write) -> Result<(), csv::Error> {

@@ -5,13 +5,20 @@
 
 pub mod csv_io;
 pub mod error;
+pub mod import;
+pub mod spatial;
 pub mod store;
 pub mod validate;
 
 /// Geodesy has one home, `towernav-geometry`; re-exported for database users.
 pub use towernav_geometry::geodesy;
 
-pub use csv_io::{RowProblem, export_csv, import_csv, read_csv};
+pub use csv_io::{RowProblem, export_csv, import_csv, parse_csv, read_csv};
 pub use error::{DbError, ImportError};
+pub use import::{
+    Format, ImportOptions, ImportReport, Parsed, Warning, import_file, import_parsed,
+    likely_mistakes,
+};
+pub use spatial::LandmarkIndex;
 pub use store::{Author, LandmarkDb};
 pub use validate::{ValidationError, validate};

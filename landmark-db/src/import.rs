@@ -1,0 +1,269 @@
+//! Import from any supported format: parse to records and problems, flag likely
+//! mistakes, then write all or nothing (or, if asked, only the good records).
+
+use std::path::Path;
+
+use towernav_geometry::Geodetic;
+use towernav_protocol::{LandmarkRecord, TowerType};
+
+use crate::csv_io::{RowProblem, parse_csv};
+use crate::error::ImportError;
+use crate::spatial::LandmarkIndex;
+use crate::store::{Author, LandmarkDb};
+
+/// Records that parsed and validated, and every row that did not.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Parsed {
+    pub records: Vec<LandmarkRecord>,
+    pub problems: Vec<RowProblem>,
+}
+
+impl Parsed {
+    pub fn all_or_nothing(self, file: &str) -> Result<Vec<LandmarkRecord>, ImportError> {
+        if self.problems.is_empty() {
+            Ok(self.records)
+        } else {
+            Err(ImportError::Rejected {
+                file: file.into(),
+                problems: self.problems,
+            })
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Csv,
+}
+
+/// How to treat likely mistakes and bad records.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportOptions {
+    /// Import the good records and report the bad ones, instead of refusing the file.
+    pub skip_invalid: bool,
+    /// Towers closer than this to another are flagged.
+    pub min_spacing_m: f64,
+    /// Plausible height range per tower type (A, B, C, D), metres.
+    pub height_range_m: [(f64, f64); 4],
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        Self {
+            skip_invalid: false,
+            min_spacing_m: 30.0,
+            height_range_m: [(15.0, 80.0); 4],
+        }
+    }
+}
+
+/// A record that imported but looks wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Warning {
+    pub id: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.id, self.message)
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportReport {
+    pub imported: usize,
+    /// Bad records left out (only with `skip_invalid`).
+    pub skipped: Vec<RowProblem>,
+    pub warnings: Vec<Warning>,
+    /// Database revision after the import.
+    pub revision: u64,
+}
+
+pub fn parse_file(path: &Path, format: Format) -> Result<Parsed, ImportError> {
+    let file = path.display().to_string();
+    let read_err = |e: std::io::Error| ImportError::Read {
+        file: file.clone(),
+        reason: e.to_string(),
+    };
+    match format {
+        Format::Csv => parse_csv(std::fs::File::open(path).map_err(read_err)?, &file),
+    }
+}
+
+pub fn import_file(
+    db: &mut LandmarkDb,
+    path: &Path,
+    format: Format,
+    options: &ImportOptions,
+    author: &Author,
+) -> Result<ImportReport, ImportError> {
+    let file = path.display().to_string();
+    let parsed = parse_file(path, format)?;
+    import_parsed(db, parsed, &file, options, author)
+}
+
+pub fn import_parsed(
+    db: &mut LandmarkDb,
+    parsed: Parsed,
+    file: &str,
+    options: &ImportOptions,
+    author: &Author,
+) -> Result<ImportReport, ImportError> {
+    let (records, skipped) = if options.skip_invalid {
+        (parsed.records, parsed.problems)
+    } else {
+        (parsed.all_or_nothing(file)?, Vec::new())
+    };
+    let existing = db.list()?;
+    let warnings = likely_mistakes(&records, &existing, options);
+    let revision = if records.is_empty() {
+        db.revision()?
+    } else {
+        db.upsert_all(&records, author)?
+    };
+    Ok(ImportReport {
+        imported: records.len(),
+        skipped,
+        warnings,
+        revision,
+    })
+}
+
+/// Replacements of existing towers, towers closer than the set spacing, heights out of range for the type.
+pub fn likely_mistakes(
+    incoming: &[LandmarkRecord],
+    existing: &[LandmarkRecord],
+    options: &ImportOptions,
+) -> Vec<Warning> {
+    let mut warnings = Vec::new();
+    let warn = |id: &str, message: String| Warning {
+        id: id.into(),
+        message,
+    };
+    let existing_ids: std::collections::HashSet<&str> =
+        existing.iter().map(|r| r.id.as_str()).collect();
+    // The set after import: incoming records win over existing ones of the same id.
+    let incoming_ids: std::collections::HashSet<&str> =
+        incoming.iter().map(|r| r.id.as_str()).collect();
+    let after: Vec<LandmarkRecord> = existing
+        .iter()
+        .filter(|r| !incoming_ids.contains(r.id.as_str()))
+        .chain(incoming)
+        .cloned()
+        .collect();
+    let index = LandmarkIndex::new(&after);
+    for r in incoming {
+        if existing_ids.contains(r.id.as_str()) {
+            warnings.push(warn(
+                &r.id,
+                "replaces the tower already stored under this id".into(),
+            ));
+        }
+        let (lo, hi) = options.height_range_m[type_index(r.tower_type)];
+        if !(lo..=hi).contains(&r.height_m) {
+            warnings.push(warn(
+                &r.id,
+                format!(
+                    "height {} m is outside {lo}..={hi} m for type {}",
+                    r.height_m, r.tower_type
+                ),
+            ));
+        }
+        let foot = Geodetic {
+            lat_deg: r.lat_deg,
+            lon_deg: r.lon_deg,
+            height_m: r.ground_elev_m,
+        };
+        for (i, d) in index.within(&foot, options.min_spacing_m) {
+            if after[i].id != r.id {
+                warnings.push(warn(
+                    &r.id,
+                    format!(
+                        "stands {d:.1} m from {} (closer than {} m)",
+                        after[i].id, options.min_spacing_m
+                    ),
+                ));
+            }
+        }
+    }
+    warnings
+}
+
+fn type_index(t: TowerType) -> usize {
+    t.index()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tower(id: &str, lat: f64, height: f64) -> LandmarkRecord {
+        LandmarkRecord::new(id, TowerType::B, lat, 114.3, 20.0, height)
+    }
+
+    #[test]
+    fn flags_near_twins_replacements_and_odd_heights() {
+        let existing = [tower("B1", 30.5, 35.0)];
+        // 0.0001 deg of latitude is about 11 m.
+        let incoming = [
+            tower("B2", 30.5001, 35.0),
+            tower("B1", 30.49, 35.0),
+            tower("B9", 30.6, 120.0),
+        ];
+        let w = likely_mistakes(&incoming, &existing, &ImportOptions::default());
+        let text: Vec<String> = w.iter().map(ToString::to_string).collect();
+        assert!(
+            text.iter().any(|t| t.starts_with("B1: replaces")),
+            "{text:?}"
+        );
+        assert!(
+            text.iter().any(|t| t.starts_with("B9: height 120")),
+            "{text:?}"
+        );
+        // B2 is 11 m from the *old* B1 position, but B1 moves away in this import.
+        assert!(
+            !text.iter().any(|t| t.starts_with("B2: stands")),
+            "{text:?}"
+        );
+        let twins = [tower("B2", 30.5001, 35.0), tower("B3", 30.5002, 35.0)];
+        let w = likely_mistakes(&twins, &[], &ImportOptions::default());
+        assert_eq!(w.len(), 2, "{w:?}");
+    }
+
+    #[test]
+    fn skip_invalid_imports_the_good_rows_and_reports_the_bad() {
+        let mut db = LandmarkDb::open_in_memory().expect("open");
+        let parsed = Parsed {
+            records: vec![tower("B1", 30.5, 35.0)],
+            problems: vec![RowProblem {
+                line: 3,
+                id: "B2".into(),
+                field: "height_m".into(),
+                reason: "-1".into(),
+            }],
+        };
+        let author = Author {
+            by: "t".into(),
+            at_unix_s: 0,
+        };
+        let refused = import_parsed(
+            &mut db,
+            parsed.clone(),
+            "f.csv",
+            &ImportOptions::default(),
+            &author,
+        );
+        assert!(matches!(refused, Err(ImportError::Rejected { .. })));
+        assert!(db.list().expect("list").is_empty());
+        let options = ImportOptions {
+            skip_invalid: true,
+            ..ImportOptions::default()
+        };
+        let report = import_parsed(&mut db, parsed, "f.csv", &options, &author).expect("import");
+        assert_eq!(
+            (report.imported, report.skipped.len(), report.revision),
+            (1, 1, 1)
+        );
+    }
+}

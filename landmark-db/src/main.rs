@@ -1,0 +1,352 @@
+//! `towernav-db`: survey data entry for the landmark database.
+//!
+//! Exit codes: 0 done; 1 refused (bad record, refused import, unknown or duplicate id);
+//! 2 usage error; 3 the database could not be opened, read or written.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use comfy_table::{Table, presets::UTF8_BORDERS_ONLY};
+use towernav_landmark_db::{
+    Author, DbError, Format, ImportError, ImportOptions, LandmarkDb, export_csv, import_file,
+    likely_mistakes, validate,
+};
+use towernav_protocol::{LandmarkChangeOp, LandmarkRecord, TowerType};
+
+#[derive(Parser)]
+#[command(about = "towernav landmark database: survey data entry", version)]
+struct Cli {
+    /// The database file.
+    #[arg(
+        long,
+        env = "TOWERNAV_DB",
+        default_value = "towers.sqlite",
+        global = true
+    )]
+    db: PathBuf,
+    /// Name stamped on every change.
+    #[arg(long, env = "USER", default_value = "towernav-db", global = true)]
+    by: String,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Create the database (or migrate an older one) and say where it is.
+    Init,
+    /// Import towers from a file, all or nothing unless --skip-invalid.
+    Import {
+        file: PathBuf,
+        #[arg(long, value_enum, default_value_t = FileFormat::Csv)]
+        format: FileFormat,
+        /// Import the good records and list the bad ones instead of refusing the file.
+        #[arg(long)]
+        skip_invalid: bool,
+        /// Flag towers closer than this to another, metres.
+        #[arg(long, default_value_t = 30.0)]
+        min_spacing_m: f64,
+    },
+    /// Export every tower; `-` writes to standard output.
+    Export {
+        file: PathBuf,
+        #[arg(long, value_enum, default_value_t = FileFormat::Csv)]
+        format: FileFormat,
+    },
+    /// All towers as a table.
+    List,
+    /// Every field of one tower.
+    Show { id: String },
+    /// Add a new tower (refused if the id exists).
+    Add(RecordArgs),
+    /// Change fields of an existing tower.
+    Edit(EditArgs),
+    /// Remove a tower.
+    Remove { id: String },
+    /// The change log, oldest first.
+    History {
+        /// Only changes after this revision.
+        #[arg(long, default_value_t = 0)]
+        since: u64,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum FileFormat {
+    Csv,
+}
+
+#[derive(Args)]
+struct RecordArgs {
+    id: String,
+    #[arg(long = "type")]
+    tower_type: TowerType,
+    #[arg(long)]
+    lat: f64,
+    #[arg(long)]
+    lon: f64,
+    /// Foot elevation above the WGS84 ellipsoid, metres.
+    #[arg(long)]
+    elev: f64,
+    /// Foot to top, metres.
+    #[arg(long)]
+    height: f64,
+    #[command(flatten)]
+    optional: OptionalArgs,
+}
+
+#[derive(Args)]
+struct EditArgs {
+    id: String,
+    #[arg(long = "type")]
+    tower_type: Option<TowerType>,
+    #[arg(long)]
+    lat: Option<f64>,
+    #[arg(long)]
+    lon: Option<f64>,
+    #[arg(long)]
+    elev: Option<f64>,
+    #[arg(long)]
+    height: Option<f64>,
+    #[command(flatten)]
+    optional: OptionalArgs,
+}
+
+#[derive(Args)]
+struct OptionalArgs {
+    #[arg(long)]
+    base_width: Option<f64>,
+    #[arg(long)]
+    line: Option<String>,
+    #[arg(long)]
+    source: Option<String>,
+    /// One-sigma horizontal survey accuracy, metres.
+    #[arg(long)]
+    sigma_h: Option<f64>,
+    /// One-sigma vertical survey accuracy, metres.
+    #[arg(long)]
+    sigma_v: Option<f64>,
+    #[arg(long)]
+    notes: Option<String>,
+}
+
+impl OptionalArgs {
+    fn apply(self, r: &mut LandmarkRecord) {
+        r.base_width_m = self.base_width.or(r.base_width_m);
+        r.line_name = self.line.or(r.line_name.take());
+        r.survey_source = self.source.or(r.survey_source.take());
+        r.sigma_horizontal_m = self.sigma_h.or(r.sigma_horizontal_m);
+        r.sigma_vertical_m = self.sigma_v.or(r.sigma_vertical_m);
+        if let Some(n) = self.notes {
+            r.notes = n;
+        }
+    }
+}
+
+/// An error and the exit code it maps to.
+struct Failure(u8, anyhow::Error);
+
+impl<E: Into<anyhow::Error>> From<E> for Failure {
+    fn from(e: E) -> Self {
+        let e = e.into();
+        let code = if e
+            .downcast_ref::<DbError>()
+            .is_some_and(|d| !matches!(d, DbError::Invalid(_)))
+        {
+            3
+        } else {
+            1
+        };
+        Failure(code, e)
+    }
+}
+
+fn refused(message: String) -> Failure {
+    Failure(1, anyhow::anyhow!(message))
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure(code, e)) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(code)
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<(), Failure> {
+    let mut db = LandmarkDb::open(&cli.db).map_err(|e| Failure(3, e.into()))?;
+    let author = Author::now(&cli.by);
+    match cli.command {
+        Command::Init => {
+            println!(
+                "{}: schema v{}, revision {}, {} towers",
+                cli.db.display(),
+                db.schema_version()?,
+                db.revision()?,
+                db.list()?.len()
+            );
+        }
+        Command::Import {
+            file,
+            format,
+            skip_invalid,
+            min_spacing_m,
+        } => {
+            let options = ImportOptions {
+                skip_invalid,
+                min_spacing_m,
+                ..ImportOptions::default()
+            };
+            let report = match import_file(&mut db, &file, format.into(), &options, &author) {
+                Ok(report) => report,
+                Err(e @ ImportError::Rejected { .. }) => {
+                    return Err(refused(format!(
+                        "{e}\n(nothing was imported; fix the rows or use --skip-invalid)"
+                    )));
+                }
+                Err(e) => return Err(e.into()),
+            };
+            for p in &report.skipped {
+                eprintln!("skipped {p}");
+            }
+            for w in &report.warnings {
+                eprintln!("check {w}");
+            }
+            println!(
+                "imported {} towers from {} (revision {}); {} skipped, {} to check",
+                report.imported,
+                file.display(),
+                report.revision,
+                report.skipped.len(),
+                report.warnings.len()
+            );
+        }
+        Command::Export { file, format } => {
+            let records = db.list()?;
+            match format {
+                FileFormat::Csv if file.as_os_str() == "-" => {
+                    export_csv(&records, std::io::stdout().lock())?
+                }
+                FileFormat::Csv => {
+                    let out = std::fs::File::create(&file)
+                        .with_context(|| format!("creating {}", file.display()))?;
+                    export_csv(&records, out)
+                        .with_context(|| format!("writing {}", file.display()))?;
+                    eprintln!("exported {} towers to {}", records.len(), file.display());
+                }
+            }
+        }
+        Command::List => {
+            let mut table = Table::new();
+            table.load_style(UTF8_BORDERS_ONLY).set_header([
+                "id", "type", "lat", "lon", "elev m", "height m", "line", "rev",
+            ]);
+            for r in db.list()? {
+                table.add_row([
+                    r.id,
+                    r.tower_type.to_string(),
+                    format!("{:.6}", r.lat_deg),
+                    format!("{:.6}", r.lon_deg),
+                    format!("{:.1}", r.ground_elev_m),
+                    format!("{:.1}", r.height_m),
+                    r.line_name.unwrap_or_default(),
+                    r.revision.to_string(),
+                ]);
+            }
+            println!("{table}");
+        }
+        Command::Show { id } => {
+            let r = db
+                .get(&id)?
+                .ok_or_else(|| refused(format!("no tower {id:?} in {}", cli.db.display())))?;
+            println!("{}", serde_json_pretty(&r));
+        }
+        Command::Add(args) => {
+            if db.get(&args.id)?.is_some() {
+                return Err(refused(format!("tower {:?} exists; use `edit`", args.id)));
+            }
+            let mut r = LandmarkRecord::new(
+                args.id,
+                args.tower_type,
+                args.lat,
+                args.lon,
+                args.elev,
+                args.height,
+            );
+            args.optional.apply(&mut r);
+            validate(&r)?;
+            warn_likely_mistakes(&db, &r)?;
+            println!("added {} at revision {}", r.id, db.upsert(&r, &author)?);
+        }
+        Command::Edit(args) => {
+            let mut r = db
+                .get(&args.id)?
+                .ok_or_else(|| refused(format!("no tower {:?}; use `add`", args.id)))?;
+            r.tower_type = args.tower_type.unwrap_or(r.tower_type);
+            r.lat_deg = args.lat.unwrap_or(r.lat_deg);
+            r.lon_deg = args.lon.unwrap_or(r.lon_deg);
+            r.ground_elev_m = args.elev.unwrap_or(r.ground_elev_m);
+            r.height_m = args.height.unwrap_or(r.height_m);
+            args.optional.apply(&mut r);
+            validate(&r)?;
+            warn_likely_mistakes(&db, &r)?;
+            println!("edited {} at revision {}", r.id, db.upsert(&r, &author)?);
+        }
+        Command::Remove { id } => match db.remove(&id, &author)? {
+            Some(rev) => println!("removed {id} at revision {rev}"),
+            None => return Err(refused(format!("no tower {id:?} to remove"))),
+        },
+        Command::History { since } => {
+            for c in db.changes_since(since)? {
+                match c.change {
+                    LandmarkChangeOp::Upsert { record } => println!(
+                        "r{:<6} {}  upsert {:<10} by {}",
+                        c.revision,
+                        utc(record.updated_at_unix_s),
+                        record.id,
+                        record.updated_by
+                    ),
+                    LandmarkChangeOp::Remove { id } => {
+                        println!("r{:<6} {:20}  remove {id}", c.revision, "")
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+impl From<FileFormat> for Format {
+    fn from(f: FileFormat) -> Self {
+        match f {
+            FileFormat::Csv => Format::Csv,
+        }
+    }
+}
+
+/// Replacement of another id, spacing and type-height checks for one record (the import's rules).
+fn warn_likely_mistakes(db: &LandmarkDb, r: &LandmarkRecord) -> Result<(), Failure> {
+    let existing: Vec<LandmarkRecord> = db.list()?.into_iter().filter(|e| e.id != r.id).collect();
+    for w in likely_mistakes(
+        std::slice::from_ref(r),
+        &existing,
+        &ImportOptions::default(),
+    ) {
+        eprintln!("check {w}");
+    }
+    Ok(())
+}
+
+fn utc(unix_s: i64) -> String {
+    let t = std::time::UNIX_EPOCH + std::time::Duration::from_secs(unix_s.max(0) as u64);
+    humantime::format_rfc3339_seconds(t).to_string()
+}
+
+fn serde_json_pretty(r: &LandmarkRecord) -> String {
+    serde_json::to_string_pretty(r).unwrap_or_else(|e| format!("{r:?} ({e})"))
+}
