@@ -147,6 +147,24 @@ impl LandmarkDb {
             .map_err(self.sql())
     }
 
+    /// SQLite's own consistency check; `Err` names what it found.
+    pub fn check_integrity(&self) -> Result<(), DbError> {
+        let verdict: String = self
+            .conn
+            .query_row("PRAGMA integrity_check", [], |r| r.get(0))
+            .map_err(self.sql())?;
+        if verdict == "ok" {
+            Ok(())
+        } else {
+            Err(DbError::Corrupt {
+                path: self.path.clone(),
+                id: String::new(),
+                field: "integrity_check",
+                reason: verdict,
+            })
+        }
+    }
+
     /// The revision of the last change; 0 for an empty, untouched database.
     pub fn revision(&self) -> Result<u64, DbError> {
         let rev: i64 = self
