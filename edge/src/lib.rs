@@ -9,6 +9,7 @@ pub mod identity;
 pub mod landmarks;
 pub mod localizer;
 pub mod pipeline;
+pub mod replica;
 pub mod report;
 pub mod shell;
 pub mod sim_eval;

@@ -280,3 +280,28 @@ pub struct DetectionFrame {
 impl Message for DetectionFrame {
     const KIND: &'static str = "detection_frame";
 }
+
+/// Asked of the ground station's landmark queryable (as the query payload).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkSyncRequest {
+    /// The replica's revision; `None` asks for the full set.
+    pub since: Option<u64>,
+}
+
+/// The ground station's answer: the full set, or the changes after `since`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkSyncReply {
+    /// The ground station's revision when it answered.
+    pub revision: u64,
+    /// `Some` for a full set (asked for, or the replica was ahead of the ground station).
+    pub full: Option<Vec<LandmarkRecord>>,
+    /// Changes after the request's `since`, in revision order (empty with `full`).
+    pub changes: Vec<LandmarkChange>,
+}
+
+impl Message for LandmarkSyncRequest {
+    const KIND: &'static str = "landmark_sync_request";
+}
+impl Message for LandmarkSyncReply {
+    const KIND: &'static str = "landmark_sync_reply";
+}
