@@ -5,6 +5,7 @@
 
 pub mod app;
 pub mod fleet;
+pub mod landmark_service;
 pub mod net;
 #[cfg(test)]
 mod test_support;

@@ -65,13 +65,16 @@ fn main() -> anyhow::Result<()> {
         .cloned()
         .collect::<Vec<_>>()
         .join(", ");
+    let db_path = cli.db.clone();
     let start = Instant::now();
     eframe::run_native(
         "towernav ground station",
         eframe::NativeOptions::default(),
         Box::new(move |cc| {
             let ctx = cc.egui_ctx.clone();
-            let events = net::spawn(endpoints, cli.fleet, move || ctx.request_repaint());
+            let events = net::spawn(endpoints, cli.fleet, Some(db_path), move || {
+                ctx.request_repaint()
+            });
             let mut app = GsApp::new(&landmarks, datum, events, listening_on);
             Ok(Box::new(FnApp(move |ui: &mut egui::Ui| {
                 app.show(ui, start.elapsed().as_secs_f64());

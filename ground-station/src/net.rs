@@ -8,9 +8,11 @@ use towernav_protocol::{Keys, NodeId, Topic, decode};
 use crate::fleet::NetEvent;
 
 /// Starts the network thread; `wake` is called after each event (egui's `request_repaint`).
+/// With `landmarks`, it also serves that landmark database to the fleet's edges.
 pub fn spawn(
     endpoints: Endpoints,
     fleet: NodeId,
+    landmarks: Option<std::path::PathBuf>,
     wake: impl Fn() + Send + 'static,
 ) -> Receiver<NetEvent> {
     let (tx, rx) = channel();
@@ -23,7 +25,7 @@ pub fn spawn(
                 .enable_all()
                 .build()
                 .map_err(|e| format!("starting tokio: {e}"))
-                .and_then(|rt| rt.block_on(listen(endpoints, fleet, &tx, &wake)));
+                .and_then(|rt| rt.block_on(listen(endpoints, fleet, landmarks, &tx, &wake)));
             if let Err(e) = result {
                 tracing::error!(error = %e, "network thread stopped");
                 let _ = tx.send(NetEvent::Failed(e));
@@ -38,6 +40,7 @@ pub fn spawn(
 async fn listen(
     endpoints: Endpoints,
     fleet: NodeId,
+    landmarks: Option<std::path::PathBuf>,
     tx: &Sender<NetEvent>,
     wake: &impl Fn(),
 ) -> Result<(), String> {
@@ -45,6 +48,15 @@ async fn listen(
     let session = zenoh::open(config)
         .await
         .map_err(|e| format!("opening zenoh session: {e}"))?;
+    if let Some(db) = landmarks {
+        let (session, fleet, tx) = (session.clone(), fleet.clone(), tx.clone());
+        tokio::spawn(async move {
+            if let Err(e) = crate::landmark_service::serve(session, fleet, db).await {
+                tracing::error!(error = %e, "landmark service stopped");
+                let _ = tx.send(NetEvent::Failed(format!("landmark service: {e}")));
+            }
+        });
+    }
     // One subscription for every per-UAV topic of the fleet.
     let key = Keys::new(fleet).all_uavs_any_topic();
     let subscriber = session

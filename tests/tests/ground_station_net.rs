@@ -33,6 +33,7 @@ async fn poses_and_rejections_reach_the_ui_channel() -> anyhow::Result<()> {
             connect: vec![endpoint],
         },
         fleet.clone(),
+        None,
         || {},
     );
 

@@ -2,6 +2,7 @@
 
 pub mod collector;
 pub mod error;
+pub mod landmark_sync;
 pub mod landmarks_source;
 pub mod node;
 pub mod sim_flight;
