@@ -11,9 +11,9 @@ use std::path::Path;
 use towernav_protocol::LandmarkRecord;
 
 use crate::error::ImportError;
+use crate::fields::{Collector, build_record};
 use crate::import::{Format, ImportOptions, Parsed, import_file};
 use crate::store::{Author, LandmarkDb};
-use crate::validate::validate;
 
 pub const REQUIRED: [&str; 6] = [
     "id",
@@ -36,8 +36,8 @@ pub const BOOKKEEPING: [&str; 3] = ["updated_at_unix_s", "updated_by", "revision
 /// One rejected row: where it is, which record, which field, and why.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RowProblem {
-    /// 1-based line in the file (the header is line 1).
-    pub line: u64,
+    /// Where in the file: "line 4" (CSV, header is line 1), "feature 3" (GeoJSON), "node 123" (OSM).
+    pub at: String,
     pub id: String,
     pub field: String,
     pub reason: String,
@@ -47,13 +47,12 @@ impl fmt::Display for RowProblem {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "line {} (id {:?}): {}: {}",
-            self.line, self.id, self.field, self.reason
+            "{} (id {:?}): {}: {}",
+            self.at, self.id, self.field, self.reason
         )
     }
 }
 
-/// Parses and validates every row; returns all records or every problem found.
 /// Parses and validates every row; records and problems both come back.
 /// Fails whole only when the file cannot be read as CSV at all.
 pub fn parse_csv(input: impl Read, file: &str) -> Result<Parsed, ImportError> {
@@ -68,100 +67,40 @@ pub fn parse_csv(input: impl Read, file: &str) -> Result<Parsed, ImportError> {
         })?
         .clone();
     let column = |name: &str| headers.iter().position(|h| h == name);
-    let mut index = [0usize; 6];
-    for (slot, name) in index.iter_mut().zip(REQUIRED) {
-        *slot = column(name).ok_or_else(|| ImportError::Read {
+    if let Some(missing) = REQUIRED.iter().find(|name| column(name).is_none()) {
+        return Err(ImportError::Read {
             file: file.into(),
             reason: format!(
-                "missing column {name:?} (header must have {})",
+                "missing column {missing:?} (header must have {})",
                 REQUIRED.join(",")
             ),
-        })?;
+        });
     }
-    let optional: [Option<usize>; 6] = OPTIONAL.map(column);
-
-    let mut records = Vec::new();
-    let mut problems = Vec::new();
-    let mut seen = std::collections::HashMap::new();
+    let mut out = Collector::default();
     for row in reader.records() {
-        let row = match row {
-            Ok(row) => row,
-            Err(e) => {
-                problems.push(RowProblem {
-                    line: e.position().map_or(0, |p| p.line()),
+        match row {
+            Ok(row) => {
+                let at = format!("line {}", row.position().map_or(0, |p| p.line()));
+                let get = |name: &str| {
+                    column(name)
+                        .and_then(|i| row.get(i))
+                        .filter(|v| !v.is_empty())
+                        .map(str::to_owned)
+                };
+                out.push(&at, build_record(&at, &get));
+            }
+            Err(e) => out.push(
+                "",
+                Err(RowProblem {
+                    at: format!("line {}", e.position().map_or(0, |p| p.line())),
                     id: String::new(),
                     field: "row".into(),
                     reason: e.to_string(),
-                });
-                continue;
-            }
-        };
-        let line = row.position().map_or(0, |p| p.line());
-        let cell = |i: usize| row.get(i).unwrap_or("");
-        let id = cell(index[0]).to_string();
-        let problem = |field: &str, reason: String| RowProblem {
-            line,
-            id: id.clone(),
-            field: field.into(),
-            reason,
-        };
-        let number = |i: usize| -> Result<f64, RowProblem> {
-            cell(index[i])
-                .parse::<f64>()
-                .map_err(|_| problem(REQUIRED[i], format!("{:?} is not a number", cell(index[i]))))
-        };
-        let text = |k: usize| {
-            optional[k]
-                .map(cell)
-                .filter(|v| !v.is_empty())
-                .map(str::to_owned)
-        };
-        let maybe_number = |k: usize| -> Result<Option<f64>, RowProblem> {
-            text(k)
-                .map(|v| {
-                    v.parse::<f64>()
-                        .map_err(|_| problem(OPTIONAL[k], format!("{v:?} is not a number")))
-                })
-                .transpose()
-        };
-        let parsed = (|| {
-            Ok(LandmarkRecord {
-                base_width_m: maybe_number(0)?,
-                line_name: text(1),
-                survey_source: text(2),
-                sigma_horizontal_m: maybe_number(3)?,
-                sigma_vertical_m: maybe_number(4)?,
-                notes: text(5).unwrap_or_default(),
-                ..LandmarkRecord::new(
-                    id.clone(),
-                    cell(index[1])
-                        .parse()
-                        .map_err(|e| problem("tower_type", e))?,
-                    number(2)?,
-                    number(3)?,
-                    number(4)?,
-                    number(5)?,
-                )
-            })
-        })();
-        let record = match parsed.and_then(|r| {
-            validate(&r)
-                .map(|()| r)
-                .map_err(|e| problem(e.field, e.reason))
-        }) {
-            Ok(r) => r,
-            Err(p) => {
-                problems.push(p);
-                continue;
-            }
-        };
-        if let Some(first) = seen.insert(record.id.clone(), line) {
-            problems.push(problem("id", format!("duplicate of line {first}")));
-            continue;
+                }),
+            ),
         }
-        records.push(record);
     }
-    Ok(Parsed { records, problems })
+    Ok(out.finish())
 }
 
 /// All rows or an error listing every bad one.
@@ -232,9 +171,16 @@ mod tests {
         };
         let summary: Vec<_> = problems
             .iter()
-            .map(|p| (p.line, p.field.as_str()))
+            .map(|p| (p.at.as_str(), p.field.as_str()))
             .collect();
-        assert_eq!(summary, [(4, "height_m"), (5, "tower_type"), (6, "id")]);
+        assert_eq!(
+            summary,
+            [
+                ("line 4", "height_m"),
+                ("line 5", "tower_type"),
+                ("line 6", "id")
+            ]
+        );
     }
 
     #[test]

@@ -8,6 +8,7 @@ use towernav_protocol::{LandmarkRecord, TowerType};
 
 use crate::csv_io::{RowProblem, parse_csv};
 use crate::error::ImportError;
+use crate::formats::{OsmMapping, parse_geojson, parse_osm_xml, parse_overpass_json};
 use crate::spatial::LandmarkIndex;
 use crate::store::{Author, LandmarkDb};
 
@@ -34,6 +35,11 @@ impl Parsed {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {
     Csv,
+    GeoJson,
+    /// OpenStreetMap XML (`power=tower` nodes).
+    OsmXml,
+    /// Overpass API JSON (`power=tower` nodes).
+    OverpassJson,
 }
 
 /// How to treat likely mistakes and bad records.
@@ -45,6 +51,8 @@ pub struct ImportOptions {
     pub min_spacing_m: f64,
     /// Plausible height range per tower type (A, B, C, D), metres.
     pub height_range_m: [(f64, f64); 4],
+    /// How OSM tags become tower types and ground elevations.
+    pub osm: OsmMapping,
 }
 
 impl Default for ImportOptions {
@@ -53,6 +61,7 @@ impl Default for ImportOptions {
             skip_invalid: false,
             min_spacing_m: 30.0,
             height_range_m: [(15.0, 80.0); 4],
+            osm: OsmMapping::default(),
         }
     }
 }
@@ -80,14 +89,20 @@ pub struct ImportReport {
     pub revision: u64,
 }
 
-pub fn parse_file(path: &Path, format: Format) -> Result<Parsed, ImportError> {
+pub fn parse_file(path: &Path, format: Format, osm: &OsmMapping) -> Result<Parsed, ImportError> {
     let file = path.display().to_string();
     let read_err = |e: std::io::Error| ImportError::Read {
         file: file.clone(),
         reason: e.to_string(),
     };
+    if format == Format::Csv {
+        return parse_csv(std::fs::File::open(path).map_err(read_err)?, &file);
+    }
+    let text = std::fs::read_to_string(path).map_err(read_err)?;
     match format {
-        Format::Csv => parse_csv(std::fs::File::open(path).map_err(read_err)?, &file),
+        Format::Csv | Format::GeoJson => parse_geojson(&text, &file),
+        Format::OsmXml => parse_osm_xml(&text, &file, osm),
+        Format::OverpassJson => parse_overpass_json(&text, &file, osm),
     }
 }
 
@@ -99,7 +114,7 @@ pub fn import_file(
     author: &Author,
 ) -> Result<ImportReport, ImportError> {
     let file = path.display().to_string();
-    let parsed = parse_file(path, format)?;
+    let parsed = parse_file(path, format, &options.osm)?;
     import_parsed(db, parsed, &file, options, author)
 }
 
@@ -237,7 +252,7 @@ mod tests {
         let parsed = Parsed {
             records: vec![tower("B1", 30.5, 35.0)],
             problems: vec![RowProblem {
-                line: 3,
+                at: "line 3".into(),
                 id: "B2".into(),
                 field: "height_m".into(),
                 reason: "-1".into(),

@@ -5,6 +5,8 @@
 
 pub mod csv_io;
 pub mod error;
+mod fields;
+pub mod formats;
 pub mod import;
 pub mod spatial;
 pub mod store;
@@ -15,6 +17,7 @@ pub use towernav_geometry::geodesy;
 
 pub use csv_io::{RowProblem, export_csv, import_csv, parse_csv, read_csv};
 pub use error::{DbError, ImportError};
+pub use formats::{OsmMapping, export_geojson};
 pub use import::{
     Format, ImportOptions, ImportReport, Parsed, Warning, import_file, import_parsed,
     likely_mistakes,

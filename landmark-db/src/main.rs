@@ -10,8 +10,8 @@ use anyhow::Context;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use comfy_table::{Table, presets::UTF8_BORDERS_ONLY};
 use towernav_landmark_db::{
-    Author, DbError, Format, ImportError, ImportOptions, LandmarkDb, export_csv, import_file,
-    likely_mistakes, validate,
+    Author, DbError, Format, ImportError, ImportOptions, LandmarkDb, OsmMapping, export_csv,
+    export_geojson, import_file, likely_mistakes, validate,
 };
 use towernav_protocol::{LandmarkChangeOp, LandmarkRecord, TowerType};
 
@@ -48,6 +48,15 @@ enum Command {
         /// Flag towers closer than this to another, metres.
         #[arg(long, default_value_t = 30.0)]
         min_spacing_m: f64,
+        /// OSM: a tag that chooses the tower type, as key=value=TYPE (repeatable), e.g. design=donau=A.
+        #[arg(long = "osm-map", value_parser = OsmMapping::parse_rule)]
+        osm_map: Vec<(String, String, TowerType)>,
+        /// OSM: the type of towers no --osm-map rule matches.
+        #[arg(long)]
+        osm_default_type: Option<TowerType>,
+        /// OSM: ground elevation (WGS84 ellipsoid, m) of towers without an `ele` tag.
+        #[arg(long)]
+        osm_ground_elev_m: Option<f64>,
     },
     /// Export every tower; `-` writes to standard output.
     Export {
@@ -73,9 +82,14 @@ enum Command {
     },
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum FileFormat {
     Csv,
+    Geojson,
+    /// OpenStreetMap XML (import only).
+    Osm,
+    /// Overpass API JSON (import only).
+    Overpass,
 }
 
 #[derive(Args)]
@@ -196,8 +210,17 @@ fn run(cli: Cli) -> Result<(), Failure> {
             format,
             skip_invalid,
             min_spacing_m,
+            osm_map,
+            osm_default_type,
+            osm_ground_elev_m,
         } => {
+            let osm = OsmMapping {
+                rules: osm_map,
+                default: osm_default_type,
+                default_ground_elev_m: osm_ground_elev_m,
+            };
             let options = ImportOptions {
+                osm,
                 skip_invalid,
                 min_spacing_m,
                 ..ImportOptions::default()
@@ -228,17 +251,26 @@ fn run(cli: Cli) -> Result<(), Failure> {
         }
         Command::Export { file, format } => {
             let records = db.list()?;
-            match format {
-                FileFormat::Csv if file.as_os_str() == "-" => {
-                    export_csv(&records, std::io::stdout().lock())?
-                }
+            let text = match format {
                 FileFormat::Csv => {
-                    let out = std::fs::File::create(&file)
-                        .with_context(|| format!("creating {}", file.display()))?;
-                    export_csv(&records, out)
-                        .with_context(|| format!("writing {}", file.display()))?;
-                    eprintln!("exported {} towers to {}", records.len(), file.display());
+                    let mut out = Vec::new();
+                    export_csv(&records, &mut out)?;
+                    out
                 }
+                FileFormat::Geojson => export_geojson(&records)?.into_bytes(),
+                FileFormat::Osm | FileFormat::Overpass => {
+                    return Err(refused(
+                        "OSM formats are import only; export to csv or geojson".into(),
+                    ));
+                }
+            };
+            if file.as_os_str() == "-" {
+                use std::io::Write;
+                std::io::stdout().lock().write_all(&text)?;
+            } else {
+                std::fs::write(&file, text)
+                    .with_context(|| format!("writing {}", file.display()))?;
+                eprintln!("exported {} towers to {}", records.len(), file.display());
             }
         }
         Command::List => {
@@ -325,6 +357,9 @@ impl From<FileFormat> for Format {
     fn from(f: FileFormat) -> Self {
         match f {
             FileFormat::Csv => Format::Csv,
+            FileFormat::Geojson => Format::GeoJson,
+            FileFormat::Osm => Format::OsmXml,
+            FileFormat::Overpass => Format::OverpassJson,
         }
     }
 }

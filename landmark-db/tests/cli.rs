@@ -121,4 +121,39 @@ fn a_surveyor_session() {
         Some(2),
         "usage errors exit 2"
     );
+
+    // GeoJSON out of one database and into another loses nothing.
+    let geojson = d.join("towers.geojson");
+    let out = db(
+        d,
+        &[
+            "export",
+            "--format",
+            "geojson",
+            geojson.to_str().expect("utf8"),
+        ],
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    let other = tempfile::tempdir().expect("tempdir");
+    let out = db(
+        other.path(),
+        &[
+            "import",
+            "--format",
+            "geojson",
+            geojson.to_str().expect("utf8"),
+        ],
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    let survey = |dir: &Path| {
+        let out = db(dir, &["export", "-"]);
+        // Drop the bookkeeping columns, which each database stamps itself.
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .map(|l| l.rsplitn(4, ',').last().unwrap_or_default().to_owned())
+            .collect::<Vec<_>>()
+    };
+    let (a, b) = (survey(d), survey(other.path()));
+    assert_eq!(a.len(), 3, "{a:?}");
+    assert_eq!(a, b);
 }

@@ -36,7 +36,7 @@ fn one_bad_row_refuses_the_file_and_changes_nothing() -> anyhow::Result<()> {
         panic!("unexpected error {err}")
     };
     assert_eq!(problems.len(), 1);
-    assert_eq!(problems[0].line, 8);
+    assert_eq!(problems[0].at, "line 8");
     assert_eq!(problems[0].field, "height_m");
     assert_eq!(problems[0].id, spoiled_id);
     assert!(
