@@ -64,6 +64,24 @@ impl Identity {
         }
     }
 
+    /// Carries bindings over to a new landmark map: `new_index(old)` is a tower's index in it,
+    /// `None` if the tower is gone (its tracks become unbound; their pins end).
+    pub fn remap(&mut self, new_index: impl Fn(usize) -> Option<usize>) {
+        self.bindings = self
+            .bindings
+            .iter()
+            .filter_map(|(&track, &t)| Some((track, new_index(t)?)))
+            .collect();
+        self.pinned = self
+            .pinned
+            .iter()
+            .filter_map(|(&track, &pin)| match pin {
+                None => Some((track, None)),
+                Some(t) => new_index(t).map(|n| (track, Some(n))),
+            })
+            .collect();
+    }
+
     pub fn is_pinned(&self, track_id: u64) -> bool {
         self.pinned.contains_key(&track_id)
     }
@@ -76,6 +94,7 @@ impl Identity {
         guess: &Pose,
         camera: &PinholeCamera,
         map: &LandmarkMap,
+        candidates: &[usize],
     ) -> Vec<Option<usize>> {
         self.bindings.retain(|id, _| live_track_ids.contains(id));
         self.pinned.retain(|id, _| live_track_ids.contains(id));
@@ -88,7 +107,9 @@ impl Identity {
             .collect();
         if !unbound.is_empty() {
             let taken: Vec<usize> = self.bindings.values().copied().collect();
-            let free: Vec<usize> = (0..map.towers.len())
+            let free: Vec<usize> = candidates
+                .iter()
+                .copied()
                 .filter(|i| !taken.contains(i))
                 .collect();
             let camera_from_world = camera.world_from_camera(guess).inverse();
@@ -152,13 +173,19 @@ mod tests {
             foot_in_world: Point3::new(x, y, 0.0),
             height_m: 30.0,
         };
-        LandmarkMap {
-            towers: vec![
+        let datum = towernav_geometry::Datum::new(towernav_geometry::Geodetic {
+            lat_deg: 30.5,
+            lon_deg: 114.3,
+            height_m: 0.0,
+        });
+        LandmarkMap::new(
+            vec![
                 tower("A1", 100.0, 30.0),
                 tower("A2", 100.0, -30.0),
                 tower("A3", 300.0, 30.0),
             ],
-        }
+            datum,
+        )
     }
 
     fn observe(
@@ -198,7 +225,7 @@ mod tests {
             ..truth
         };
         let mut identity = Identity::new(IdentityParams::default());
-        let bound = identity.update(&tracks, &[7, 8, 9], &guess, &camera, &map);
+        let bound = identity.update(&tracks, &[7, 8, 9], &guess, &camera, &map, &[0, 1, 2]);
         assert_eq!(bound, [Some(1), Some(0), Some(2)]);
     }
 
@@ -214,11 +241,11 @@ mod tests {
         let mut identity = Identity::new(IdentityParams::default());
         identity.pin(7, Some(2));
         assert_eq!(
-            identity.update(&tracks, &[7], &pose, &camera, &map),
+            identity.update(&tracks, &[7], &pose, &camera, &map, &[0, 1, 2]),
             [Some(2)]
         );
         assert!(identity.is_pinned(7));
-        identity.update(&[], &[], &pose, &camera, &map);
+        identity.update(&[], &[], &pose, &camera, &map, &[0, 1, 2]);
         assert!(!identity.is_pinned(7));
     }
 }

@@ -1,7 +1,11 @@
-//! The database towers in the mission's ENU world, ready for projection.
+//! The database towers in the mission's ENU world, ready for projection, with the
+//! landmark database's radius query to pick the ones near the UAV.
+
+use std::sync::Arc;
 
 use nalgebra::{Point3, Vector3};
 use towernav_geometry::{Datum, Geodetic};
+use towernav_landmark_db::LandmarkIndex;
 use towernav_protocol::{LandmarkRecord, TowerType};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -18,12 +22,42 @@ impl MapTower {
     }
 }
 
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Clone)]
 pub struct LandmarkMap {
     pub towers: Vec<MapTower>,
+    datum: Datum,
+    /// Shared so that cloning a map (replays, benches) does not rebuild the tree.
+    index: Arc<LandmarkIndex>,
+}
+
+impl std::fmt::Debug for LandmarkMap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LandmarkMap")
+            .field("towers", &self.towers)
+            .field("datum", &self.datum)
+            .finish()
+    }
+}
+
+impl PartialEq for LandmarkMap {
+    fn eq(&self, other: &Self) -> bool {
+        self.towers == other.towers && self.datum == other.datum
+    }
 }
 
 impl LandmarkMap {
+    pub fn new(towers: Vec<MapTower>, datum: Datum) -> Self {
+        let feet: Vec<Geodetic> = towers
+            .iter()
+            .map(|t| datum.to_geodetic(&t.foot_in_world))
+            .collect();
+        Self {
+            index: Arc::new(LandmarkIndex::from_points(&feet)),
+            towers,
+            datum,
+        }
+    }
+
     /// Records are expected to be validated (the database does so on every write).
     pub fn from_records(records: &[LandmarkRecord], datum: &Datum) -> Self {
         let towers = records
@@ -39,10 +73,49 @@ impl LandmarkMap {
                 height_m: r.height_m,
             })
             .collect();
-        Self { towers }
+        Self::new(towers, *datum)
     }
 
     pub fn index_of(&self, id: &str) -> Option<usize> {
         self.towers.iter().position(|t| t.id == id)
+    }
+
+    /// Towers whose foot lies within `radius_m` of a point, nearest first.
+    pub fn nearby(&self, point_in_world: &Point3<f64>, radius_m: f64) -> Vec<usize> {
+        let here = self.datum.to_geodetic(point_in_world);
+        self.index
+            .within(&here, radius_m)
+            .into_iter()
+            .map(|(i, _)| i)
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearby_finds_the_towers_within_range_nearest_first() {
+        let datum = Datum::new(Geodetic {
+            lat_deg: 30.5,
+            lon_deg: 114.3,
+            height_m: 20.0,
+        });
+        let tower = |id: &str, x: f64| MapTower {
+            id: id.into(),
+            tower_type: TowerType::A,
+            foot_in_world: Point3::new(x, 0.0, 0.0),
+            height_m: 30.0,
+        };
+        let map = LandmarkMap::new(
+            vec![
+                tower("far", 3000.0),
+                tower("near", 100.0),
+                tower("mid", 900.0),
+            ],
+            datum,
+        );
+        assert_eq!(map.nearby(&Point3::new(0.0, 0.0, 30.0), 1000.0), [1, 2]);
     }
 }

@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use towernav_edge::LandmarkMap;
 use towernav_edge::report::FlightReport;
 use towernav_edge::shell::collector::{PoseCollector, wait_for_peer};
+use towernav_edge::shell::landmark_sync::LandmarkSync;
 use towernav_edge::shell::landmarks_source::load_landmarks;
 use towernav_edge::shell::node::{EdgeNode, open_session};
 use towernav_edge::shell::sim_flight::{FlightRecord, SimFlightOptions, fly};
@@ -50,8 +51,11 @@ struct RunArgs {
     #[arg(long, default_value_t = 4.0)]
     speed: f64,
     /// Landmarks to localize against (.csv or a landmark database); default: the simulated world's.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "replica")]
     landmarks: Option<PathBuf>,
+    /// Keep a replica of the ground station's landmarks in this file and follow its changes.
+    #[arg(long)]
+    replica: Option<PathBuf>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -78,16 +82,42 @@ fn main() -> anyhow::Result<()> {
 
 async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
     let scenario = Scenario::seed(args.seed);
-    let records = match &args.landmarks {
-        Some(path) => load_landmarks(path)?,
-        None => scenario.world.landmarks(),
-    };
-    let map = LandmarkMap::from_records(&records, &scenario.world.datum);
     let endpoints = Endpoints {
         listen: args.listen.clone(),
         connect: args.connect.clone(),
     };
     let session = open_session(&endpoints).await?;
+    let mut sync = match &args.replica {
+        Some(path) => {
+            // Zenoh retries links every few seconds: give the ground station a moment to reach us.
+            if wait_for_peer(&session, Duration::from_secs(6))
+                .await
+                .is_err()
+            {
+                tracing::warn!("no peer yet; asking for landmarks anyway");
+            }
+            let (sync, source) = LandmarkSync::start(
+                &session,
+                args.fleet.clone(),
+                path.clone(),
+                Duration::from_secs(3),
+            )
+            .await?;
+            println!(
+                "landmarks: {} towers at revision {} ({source:?})",
+                sync.replica().len(),
+                sync.replica().revision
+            );
+            Some(sync)
+        }
+        None => None,
+    };
+    let records = match (&sync, &args.landmarks) {
+        (Some(sync), _) => sync.replica().records(),
+        (None, Some(path)) => load_landmarks(path)?,
+        (None, None) => scenario.world.landmarks(),
+    };
+    let map = LandmarkMap::from_records(&records, &scenario.world.datum);
     let node = EdgeNode::new(session, args.fleet.clone(), args.uav.clone()).await?;
 
     let listener = if demo {
@@ -135,7 +165,10 @@ async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
         speed: (args.speed > 0.0).then_some(args.speed),
         ..SimFlightOptions::default()
     };
-    let record: FlightRecord = fly(&node, &scenario, map, options, |n| bar.set_position(n)).await?;
+    let record: FlightRecord = fly(&node, &scenario, map, options, sync.as_mut(), |n| {
+        bar.set_position(n)
+    })
+    .await?;
     bar.finish_and_clear();
 
     if let Some((_session, collector)) = listener {

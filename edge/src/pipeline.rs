@@ -17,6 +17,8 @@ pub struct PipelineConfig {
     pub sort: SortParams,
     pub identity: IdentityParams,
     pub localizer: LocalizerParams,
+    /// Only towers within this distance of the pose guess are candidates for a new track.
+    pub landmark_radius_m: f64,
 }
 
 impl PipelineConfig {
@@ -27,6 +29,7 @@ impl PipelineConfig {
             sort: SortParams::default(),
             identity: IdentityParams::default(),
             localizer: LocalizerParams::default(),
+            landmark_radius_m: 1500.0,
         }
     }
 }
@@ -75,6 +78,13 @@ impl Pipeline {
         &self.map
     }
 
+    /// Swaps in a new landmark map (the replica changed); bindings follow their towers by id.
+    pub fn replace_map(&mut self, map: LandmarkMap) {
+        let old = std::mem::replace(&mut self.map, map);
+        let new = &self.map;
+        self.identity.remap(|i| new.index_of(&old.towers[i].id));
+    }
+
     /// An operator's correction: bind `track_id` to the tower `tower_id` (or to none).
     pub fn pin(&mut self, track_id: u64, tower_id: Option<&str>) -> Result<(), String> {
         if !self.tracker.live_ids().any(|id| id == track_id) {
@@ -107,9 +117,17 @@ impl Pipeline {
         let tracks = self.tracker.update(frame.time_s, &frame.detections);
         let live: Vec<u64> = self.tracker.live_ids().collect();
         let guess = self.pose_guess(frame);
-        let bindings = self
-            .identity
-            .update(&tracks, &live, &guess, &self.config.camera, &self.map);
+        let candidates = self
+            .map
+            .nearby(&guess.position_in_world, self.config.landmark_radius_m);
+        let bindings = self.identity.update(
+            &tracks,
+            &live,
+            &guess,
+            &self.config.camera,
+            &self.map,
+            &candidates,
+        );
 
         let observations: Vec<Observation<'_>> = tracks
             .iter()
@@ -153,6 +171,56 @@ impl Pipeline {
             time_s: frame.time_s,
             fix,
             tracks,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use towernav_sim::Scenario;
+
+    #[test]
+    fn bindings_follow_their_towers_when_the_map_is_replaced() {
+        let scenario = Scenario::seed(2);
+        let records = scenario.world.landmarks();
+        let map = LandmarkMap::from_records(&records, &scenario.world.datum);
+        let mut pipeline = Pipeline::new(
+            PipelineConfig::new(scenario.camera, scenario.flight.start_in_world),
+            map,
+        );
+        let frames: Vec<_> = scenario.frames().take(200).map(|(_, f)| f).collect();
+        let mut last = None;
+        for f in &frames[..150] {
+            last = Some(pipeline.process(f));
+        }
+        let ids = |out: &FrameOutput, map: &LandmarkMap| -> Vec<(u64, Option<String>)> {
+            out.tracks
+                .iter()
+                .map(|t| (t.track_id, t.tower.map(|i| map.towers[i].id.clone())))
+                .collect()
+        };
+        let before = ids(&last.expect("frames"), pipeline.map());
+        assert!(
+            before.iter().filter(|(_, id)| id.is_some()).count() >= 2,
+            "{before:?}"
+        );
+
+        // The same towers in reverse order, minus one nobody is tracking.
+        let tracked: Vec<&str> = before.iter().filter_map(|(_, id)| id.as_deref()).collect();
+        let mut reordered: Vec<_> = records.iter().rev().cloned().collect();
+        let dropped = reordered
+            .iter()
+            .position(|r| !tracked.contains(&r.id.as_str()))
+            .expect("an untracked tower");
+        reordered.remove(dropped);
+        pipeline.replace_map(LandmarkMap::from_records(&reordered, &scenario.world.datum));
+
+        let after = pipeline.process(&frames[150]);
+        for (track, id) in ids(&after, pipeline.map()) {
+            if let Some((_, was)) = before.iter().find(|(t, _)| *t == track) {
+                assert_eq!(&id, was, "track {track} changed tower with the map");
+            }
         }
     }
 }

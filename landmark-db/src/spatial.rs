@@ -17,10 +17,16 @@ pub struct LandmarkIndex {
 
 impl LandmarkIndex {
     pub fn new(records: &[LandmarkRecord]) -> Self {
-        let entries = records
+        let feet: Vec<Geodetic> = records.iter().map(foot).collect();
+        Self::from_points(&feet)
+    }
+
+    /// An index over bare positions; results index into `points`.
+    pub fn from_points(points: &[Geodetic]) -> Self {
+        let entries = points
             .iter()
             .enumerate()
-            .map(|(i, r)| GeomWithData::new(foot(r).to_ecef(), i))
+            .map(|(i, p)| GeomWithData::new(p.to_ecef(), i))
             .collect();
         Self {
             tree: RTree::bulk_load(entries),

@@ -7,6 +7,7 @@ use towernav_protocol::{CorrectionAck, EdgeState, StatusHeartbeat};
 use towernav_sim::Scenario;
 
 use super::ShellError;
+use super::landmark_sync::LandmarkSync;
 use super::node::EdgeNode;
 use crate::landmarks::LandmarkMap;
 use crate::pipeline::{Pipeline, PipelineConfig};
@@ -52,6 +53,7 @@ pub async fn fly(
     scenario: &Scenario,
     map: LandmarkMap,
     options: SimFlightOptions,
+    mut sync: Option<&mut LandmarkSync>,
     mut on_frame: impl FnMut(u64),
 ) -> Result<FlightRecord, ShellError> {
     let start = scenario.flight.start_in_world;
@@ -72,6 +74,17 @@ pub async fn fly(
             if let Some(wait) = due.checked_sub(wall.elapsed()) {
                 tokio::time::sleep(wait).await;
             }
+        }
+        if let Some(sync) = sync.as_deref_mut()
+            && sync.poll().await?
+        {
+            let replica = sync.replica();
+            tracing::info!(
+                revision = replica.revision,
+                towers = replica.len(),
+                "landmarks updated from the ground station"
+            );
+            pipeline.replace_map(LandmarkMap::from_records(&replica.records(), &datum));
         }
         for correction in node.pending_corrections() {
             let result = pipeline.pin(correction.track_id, correction.tower_id.as_deref());
