@@ -16,16 +16,9 @@ use towernav_sim::Scenario;
 const MAX_RMS_M: f64 = 5.0;
 const MAX_ERROR_M: f64 = 20.0;
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free loopback port")
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn poses_arrive_decode_and_match_the_truth() -> anyhow::Result<()> {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let endpoint = towernav_tests::loopback_endpoint();
     let fleet = NodeId::new("itest")?;
     let uav = NodeId::new("uav7")?;
 

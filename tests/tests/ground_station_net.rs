@@ -10,16 +10,9 @@ use towernav_ground_station::net;
 use towernav_protocol::session::Endpoints;
 use towernav_protocol::{Keys, NodeId, PoseEstimate, PoseMethod, Topic, encode};
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free loopback port")
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn poses_and_rejections_reach_the_ui_channel() -> anyhow::Result<()> {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let endpoint = towernav_tests::loopback_endpoint();
     let fleet = NodeId::new("gsnet")?;
     let uav = NodeId::new("uav3")?;
     let edge = open_session(&Endpoints {

@@ -14,13 +14,6 @@ use towernav_protocol::{
 };
 use towernav_sim::World;
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free loopback port")
-}
-
 /// Polls until the replica equals the database, or fails after a few seconds.
 async fn converge(sync: &mut LandmarkSync, db: &LandmarkDb) -> anyhow::Result<()> {
     for _ in 0..100 {
@@ -50,7 +43,7 @@ async fn the_edge_replica_follows_the_ground_station() -> anyhow::Result<()> {
     db.upsert_all(&World::seed_field().landmarks(), &crew)?;
 
     let fleet = NodeId::new("synctest")?;
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let endpoint = towernav_tests::loopback_endpoint();
     let gs = open_session(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
