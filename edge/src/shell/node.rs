@@ -42,7 +42,14 @@ impl EdgeNode {
                     .map_err(|e| ShellError::zenoh(format!("declaring publisher {key}"), e))
             }
         };
-        let pose = publisher(Topic::Pose).await?;
+        // Poses must not vanish under load: block the sender rather than drop a fix.
+        // Tracks and status keep zenoh's default (drop), where only the latest matters.
+        let pose_key = keys.uav(&uav, Topic::Pose);
+        let pose = session
+            .declare_publisher(pose_key.clone())
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .await
+            .map_err(|e| ShellError::zenoh(format!("declaring publisher {pose_key}"), e))?;
         let tracks = publisher(Topic::Tracks).await?;
         let status = publisher(Topic::Status).await?;
         let correction_key = keys.uav(&uav, Topic::Correction);
