@@ -87,6 +87,7 @@ impl Identity {
     }
 
     /// Binds this frame's tracks; returns each track's tower index, in order.
+    /// `candidates` (towers near the pose guess) is asked only when some track is unbound.
     pub fn update(
         &mut self,
         tracks: &[TrackOutput],
@@ -94,7 +95,7 @@ impl Identity {
         guess: &Pose,
         camera: &PinholeCamera,
         map: &LandmarkMap,
-        candidates: &[usize],
+        candidates: impl FnOnce() -> Vec<usize>,
     ) -> Vec<Option<usize>> {
         self.bindings.retain(|id, _| live_track_ids.contains(id));
         self.pinned.retain(|id, _| live_track_ids.contains(id));
@@ -107,9 +108,8 @@ impl Identity {
             .collect();
         if !unbound.is_empty() {
             let taken: Vec<usize> = self.bindings.values().copied().collect();
-            let free: Vec<usize> = candidates
-                .iter()
-                .copied()
+            let free: Vec<usize> = candidates()
+                .into_iter()
                 .filter(|i| !taken.contains(i))
                 .collect();
             let camera_from_world = camera.world_from_camera(guess).inverse();
@@ -225,7 +225,7 @@ mod tests {
             ..truth
         };
         let mut identity = Identity::new(IdentityParams::default());
-        let bound = identity.update(&tracks, &[7, 8, 9], &guess, &camera, &map, &[0, 1, 2]);
+        let bound = identity.update(&tracks, &[7, 8, 9], &guess, &camera, &map, || vec![0, 1, 2]);
         assert_eq!(bound, [Some(1), Some(0), Some(2)]);
     }
 
@@ -241,11 +241,11 @@ mod tests {
         let mut identity = Identity::new(IdentityParams::default());
         identity.pin(7, Some(2));
         assert_eq!(
-            identity.update(&tracks, &[7], &pose, &camera, &map, &[0, 1, 2]),
+            identity.update(&tracks, &[7], &pose, &camera, &map, || vec![0, 1, 2]),
             [Some(2)]
         );
         assert!(identity.is_pinned(7));
-        identity.update(&[], &[], &pose, &camera, &map, &[0, 1, 2]);
+        identity.update(&[], &[], &pose, &camera, &map, || vec![0, 1, 2]);
         assert!(!identity.is_pinned(7));
     }
 }

@@ -117,16 +117,16 @@ impl Pipeline {
         let tracks = self.tracker.update(frame.time_s, &frame.detections);
         let live: Vec<u64> = self.tracker.live_ids().collect();
         let guess = self.pose_guess(frame);
-        let candidates = self
-            .map
-            .nearby(&guess.position_in_world, self.config.landmark_radius_m);
         let bindings = self.identity.update(
             &tracks,
             &live,
             &guess,
             &self.config.camera,
             &self.map,
-            &candidates,
+            || {
+                self.map
+                    .nearby(&guess.position_in_world, self.config.landmark_radius_m)
+            },
         );
 
         let observations: Vec<Observation<'_>> = tracks

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use towernav_geometry::Geodetic;
-use towernav_protocol::{LandmarkRecord, TowerType};
+use towernav_protocol::LandmarkRecord;
 
 use crate::csv_io::{RowProblem, parse_csv};
 use crate::error::ImportError;
@@ -175,7 +175,7 @@ pub fn likely_mistakes(
                 "replaces the tower already stored under this id".into(),
             ));
         }
-        let (lo, hi) = options.height_range_m[type_index(r.tower_type)];
+        let (lo, hi) = options.height_range_m[r.tower_type.index()];
         if !(lo..=hi).contains(&r.height_m) {
             warnings.push(warn(
                 &r.id,
@@ -205,13 +205,10 @@ pub fn likely_mistakes(
     warnings
 }
 
-fn type_index(t: TowerType) -> usize {
-    t.index()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use towernav_protocol::TowerType;
 
     fn tower(id: &str, lat: f64, height: f64) -> LandmarkRecord {
         LandmarkRecord::new(id, TowerType::B, lat, 114.3, 20.0, height)

@@ -50,7 +50,9 @@ impl OracleDetector {
         let mut out = Vec::with_capacity(truth.boxes.len() + 1);
         for b in &truth.boxes {
             if b.bbox.height() < self.params.min_height_px
-                || self.rng.random_bool(self.params.miss_probability)
+                || self
+                    .rng
+                    .random_bool(probability(self.params.miss_probability))
             {
                 continue;
             }
@@ -71,7 +73,7 @@ impl OracleDetector {
         }
         if self
             .rng
-            .random_bool(self.params.false_positive_rate.clamp(0.0, 1.0))
+            .random_bool(probability(self.params.false_positive_rate))
         {
             let h = self.rng.random_range(15.0..120.0);
             let w = h * self.rng.random_range(0.15..0.4);
@@ -88,6 +90,11 @@ impl OracleDetector {
     }
 }
 
+/// A rate as a probability `random_bool` accepts: clamped to 0..=1, NaN as 0.
+fn probability(p: f64) -> f64 {
+    if p.is_nan() { 0.0 } else { p.clamp(0.0, 1.0) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -102,6 +109,26 @@ mod tests {
         assert_eq!(
             a.detect(&truth, 1280.0, 720.0),
             b.detect(&truth, 1280.0, 720.0)
+        );
+    }
+
+    #[test]
+    fn out_of_range_rates_do_not_panic() {
+        let truth = Scenario::seed(1).truth(0);
+        let params = OracleParams {
+            miss_probability: f64::NAN,
+            false_positive_rate: 7.0,
+            ..OracleParams::default()
+        };
+        let dets = OracleDetector::new(params, 1).detect(&truth, 1280.0, 720.0);
+        assert_eq!(
+            dets.len(),
+            truth
+                .boxes
+                .iter()
+                .filter(|b| b.bbox.height() >= params.min_height_px)
+                .count()
+                + 1
         );
     }
 

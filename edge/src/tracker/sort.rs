@@ -49,7 +49,7 @@ pub struct TrackOutput {
     pub tower_type: TowerType,
 }
 
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct SortTracker {
     params: SortParams,
     tracks: Vec<Track>,
