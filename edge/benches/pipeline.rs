@@ -10,7 +10,7 @@ use towernav_sim::Scenario;
 fn seed_flight(c: &mut Criterion) {
     let scenario = Scenario::seed(1);
     let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
-    let config = PipelineConfig::new(scenario.camera, scenario.flight.start_in_world);
+    let config = PipelineConfig::new(scenario.camera, scenario.start_in_world());
     let frames: Vec<DetectionFrame> = scenario.frames().map(|(_, f)| f).collect();
 
     let mut group = c.benchmark_group("pipeline");

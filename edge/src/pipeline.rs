@@ -186,7 +186,7 @@ mod tests {
         let records = scenario.world.landmarks();
         let map = LandmarkMap::from_records(&records, &scenario.world.datum);
         let mut pipeline = Pipeline::new(
-            PipelineConfig::new(scenario.camera, scenario.flight.start_in_world),
+            PipelineConfig::new(scenario.camera, scenario.start_in_world()),
             map,
         );
         let frames: Vec<_> = scenario.frames().take(200).map(|(_, f)| f).collect();

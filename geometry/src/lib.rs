@@ -11,6 +11,6 @@ pub mod geodesy;
 pub mod pixel_box;
 
 pub use camera::{CameraMount, Intrinsics, PinholeCamera};
-pub use frames::{Attitude, Pose};
+pub use frames::{Attitude, Pose, wrap_angle};
 pub use geodesy::{Datum, Geodetic};
 pub use pixel_box::PixelBox;

@@ -1,7 +1,11 @@
-//! The seed's straight flight through the middle of the field.
+//! Flights: the level straight line of the walking skeleton, and quadrotor
+//! flights that follow waypoint plans with realistic attitude and wind.
 
 use nalgebra::Point3;
-use towernav_geometry::{Attitude, Pose};
+use towernav_geometry::{Attitude, Pose, wrap_angle};
+
+pub use crate::quadrotor::{QuadParams, Trajectory, WindParams};
+pub use crate::waypoints::{FlightPlan, PlanError, Waypoint};
 
 /// Constant speed and heading, height above the plate oscillating between
 /// `height_m - height_swing_m` and `height_m + height_swing_m`.
@@ -42,6 +46,51 @@ impl StraightFlight {
             ),
             attitude: Attitude::level(self.yaw),
         }
+    }
+}
+
+/// Any flight the simulator can replay: a pose for every time.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Flight {
+    /// Level, constant speed: the walking skeleton's flight.
+    Straight(StraightFlight),
+    /// A flown quadrotor trajectory, sampled finely.
+    Quad(Trajectory),
+}
+
+impl Flight {
+    pub fn pose_at(&self, t: f64) -> Pose {
+        match self {
+            Self::Straight(f) => f.pose_at(t),
+            Self::Quad(tr) => tr.pose_at(t),
+        }
+    }
+
+    pub fn duration_s(&self) -> f64 {
+        match self {
+            Self::Straight(f) => f.duration_s,
+            Self::Quad(tr) => tr.duration_s(),
+        }
+    }
+
+    /// Where the UAV took off: the rough position the pipeline starts from.
+    pub fn start_in_world(&self) -> Point3<f64> {
+        self.pose_at(0.0).position_in_world
+    }
+
+    /// Body angular rates (roll, pitch, yaw) at `t`, rad/s, by central difference.
+    pub fn attitude_rates(&self, t: f64) -> (f64, f64, f64) {
+        let dt = 0.01;
+        let (a, b) = (
+            self.pose_at((t - dt).max(0.0)).attitude,
+            self.pose_at(t + dt).attitude,
+        );
+        let span = (t + dt) - (t - dt).max(0.0);
+        (
+            (b.roll - a.roll) / span,
+            (b.pitch - a.pitch) / span,
+            wrap_angle(b.yaw - a.yaw) / span,
+        )
     }
 }
 

@@ -1,16 +1,22 @@
-//! A deterministic, seeded tower field and flight with exact truth, and an
-//! oracle detector that perturbs the truth like a real one would.
+//! A deterministic, seeded tower field and flight with exact truth, a renderer
+//! that draws what the camera sees, and an oracle detector that perturbs the
+//! truth like a real one would.
 //!
 //! Pure: no I/O, no clocks, no global state. Same seed, same frames.
 
 pub mod flight;
 pub mod oracle;
+pub mod quadrotor;
+pub mod render;
 pub mod scenario;
+pub mod tower_model;
 pub mod truth;
+pub mod waypoints;
 pub mod world;
 
-pub use flight::StraightFlight;
+pub use flight::{Flight, StraightFlight};
 pub use oracle::{OracleDetector, OracleParams};
+pub use render::{Conditions, Renderer};
 pub use scenario::Scenario;
 pub use truth::{FrameTruth, TruthBox};
 pub use world::{SimTower, World};

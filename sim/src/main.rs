@@ -1,32 +1,156 @@
-//! `towernav-sim`: export the simulated world for the landmark database.
+//! `towernav-sim`: worlds, flights, rendered frames and datasets with exact truth.
+
+mod cli;
 
 use std::path::PathBuf;
 
 use anyhow::Context;
-use clap::{Parser, Subcommand};
-use towernav_sim::World;
+use clap::{Parser, Subcommand, ValueEnum};
+use towernav_sim::waypoints::FlightPlan;
+use towernav_sim::world::WorldParams;
+use towernav_sim::{Conditions, Renderer, Scenario, World};
 
 #[derive(Parser)]
-#[command(about = "towernav simulator: worlds and flights with exact truth")]
+#[command(
+    about = "towernav simulator: worlds and flights with exact truth, rendered frames, datasets"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum Weather {
+    /// Clear midday, light haze, a little noise.
+    Default,
+    /// No haze, clouds, noise, blur or distractors: geometry only.
+    Plain,
+    /// Drawn at random from `--seed`.
+    Random,
+}
+
+#[derive(clap::Args)]
+struct WorldArg {
+    /// Use a seeded random world instead of the seed's 18-tower field.
+    #[arg(long)]
+    random_world: Option<u64>,
+}
+
+impl WorldArg {
+    fn world(&self) -> World {
+        match self.random_world {
+            Some(seed) => World::random(seed, &WorldParams::default()),
+            None => World::seed_field(),
+        }
+    }
+}
+
+#[derive(clap::Args)]
+struct PlanArg {
+    /// A named flight plan: seed-path-1, seed-path-2, straight, out-and-back, lawnmower.
+    #[arg(long, default_value = "seed-path-1", conflicts_with = "plan")]
+    preset: String,
+    /// A waypoint file (TOML, as in sim/flights/).
+    #[arg(long)]
+    plan: Option<PathBuf>,
+}
+
+impl PlanArg {
+    fn plan(&self) -> anyhow::Result<FlightPlan> {
+        Ok(match &self.plan {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("reading flight plan {}", path.display()))?;
+                FlightPlan::parse(&text, &path.display().to_string())?
+            }
+            None => FlightPlan::preset(&self.preset)?,
+        })
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
-    /// Write the seed field's 18 towers as a landmark CSV.
+    /// Write a world's towers as a landmark CSV.
     World {
+        #[command(flatten)]
+        world: WorldArg,
         /// Output CSV path; `-` for standard output.
         #[arg(long, default_value = "-")]
         out: PathBuf,
     },
+    /// Fly a plan: trajectory.csv, truth.csv and MOT ground truth, optionally every frame as JPEG.
+    Flight {
+        #[command(flatten)]
+        world: WorldArg,
+        #[command(flatten)]
+        plan: PlanArg,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Also render every frame into mot/<plan>/img1/.
+        #[arg(long)]
+        images: bool,
+        #[arg(long, value_enum, default_value = "default")]
+        weather: Weather,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Render one frame of a flight to PNG, with its truth boxes drawn unless --no-boxes.
+    Render {
+        #[command(flatten)]
+        world: WorldArg,
+        #[command(flatten)]
+        plan: PlanArg,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Seconds into the flight.
+        #[arg(long, default_value_t = 20.0)]
+        time: f64,
+        #[arg(long, value_enum, default_value = "default")]
+        weather: Weather,
+        #[arg(long)]
+        no_boxes: bool,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// YOLO dataset (images, labels, data.yaml; split by world) and MOT truth, from random worlds.
+    Dataset {
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 40)]
+        worlds: usize,
+        #[arg(long, default_value_t = 40)]
+        frames_per_world: usize,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        #[arg(long, default_value_t = 0.1)]
+        val_share: f64,
+        #[arg(long, default_value_t = 0.1)]
+        test_share: f64,
+    },
+}
+
+fn conditions(weather: Weather, seed: u64) -> Conditions {
+    match weather {
+        Weather::Default => Conditions::default(),
+        Weather::Plain => Conditions::plain(),
+        Weather::Random => {
+            use rand::SeedableRng;
+            Conditions::random(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed))
+        }
+    }
 }
 
 fn main() -> anyhow::Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
     match Cli::parse().command {
-        Command::World { out } => {
-            let landmarks = World::seed_field().landmarks();
+        Command::World { world, out } => {
+            let landmarks = world.world().landmarks();
             if out.as_os_str() == "-" {
                 towernav_landmark_db::export_csv(&landmarks, std::io::stdout().lock())?;
             } else {
@@ -36,6 +160,92 @@ fn main() -> anyhow::Result<()> {
                     .with_context(|| format!("writing {}", out.display()))?;
                 eprintln!("wrote {} towers to {}", landmarks.len(), out.display());
             }
+        }
+        Command::Flight {
+            world,
+            plan,
+            seed,
+            images,
+            weather,
+            out,
+        } => {
+            let plan = plan.plan()?;
+            let scenario = Scenario::flying(world.world(), &plan, seed);
+            tracing::info!(plan = %plan.name, frames = scenario.frame_count(), duration_s = scenario.flight.duration_s(), "flying");
+            cli::flight_cmd::write_flight(
+                &scenario,
+                &plan.name,
+                &out,
+                images,
+                &conditions(weather, seed),
+            )?;
+            eprintln!(
+                "wrote {} frames of {} to {}",
+                scenario.frame_count(),
+                plan.name,
+                out.display()
+            );
+        }
+        Command::Render {
+            world,
+            plan,
+            seed,
+            time,
+            weather,
+            no_boxes,
+            out,
+        } => {
+            let plan = plan.plan()?;
+            let scenario = Scenario::flying(world.world(), &plan, seed);
+            let duration = scenario.flight.duration_s();
+            anyhow::ensure!(
+                (0.0..=duration).contains(&time),
+                "--time {time} is outside the flight, which lasts {duration:.1} s"
+            );
+            let seq = (time * scenario.fps).round() as u64;
+            let truth = scenario.truth(seq);
+            let renderer = Renderer::new(&scenario.world, scenario.camera, seed);
+            let rates = scenario.flight.attitude_rates(truth.time_s);
+            let mut image =
+                renderer.render(&truth.pose, &conditions(weather, seed), rates, seed ^ seq);
+            if !no_boxes {
+                cli::overlay::draw_boxes(&mut image, &truth.boxes);
+            }
+            image
+                .save(&out)
+                .with_context(|| format!("writing {}", out.display()))?;
+            for b in &truth.boxes {
+                eprintln!(
+                    "{:>8} {} h={:6.1} px  d={:6.1} m  occluded {:.2}{}",
+                    b.tower_id,
+                    b.tower_type,
+                    b.bbox.height(),
+                    b.distance_m,
+                    b.occluded,
+                    if b.truncated { "  cut by the edge" } else { "" }
+                );
+            }
+            eprintln!("wrote {}", out.display());
+        }
+        Command::Dataset {
+            out,
+            worlds,
+            frames_per_world,
+            seed,
+            val_share,
+            test_share,
+        } => {
+            cli::dataset::write_dataset(
+                &out,
+                &cli::dataset::DatasetOptions {
+                    worlds,
+                    frames_per_world,
+                    seed,
+                    val_share,
+                    test_share,
+                },
+            )?;
+            eprintln!("wrote {}", out.join("data.yaml").display());
         }
     }
     Ok(())

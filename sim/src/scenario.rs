@@ -7,21 +7,43 @@ use rand_distr::StandardNormal;
 use towernav_geometry::PinholeCamera;
 use towernav_protocol::DetectionFrame;
 
-use crate::flight::StraightFlight;
+use crate::flight::{Flight, StraightFlight};
 use crate::oracle::{OracleDetector, OracleParams};
+use crate::quadrotor::{QuadParams, fly};
 use crate::truth::{FrameTruth, frame_truth};
+use crate::waypoints::{FlightPlan, PlanError};
 use crate::world::World;
 
 #[derive(Debug, Clone)]
 pub struct Scenario {
     pub world: World,
-    pub flight: StraightFlight,
+    pub flight: Flight,
     pub camera: PinholeCamera,
     pub fps: f64,
     pub seed: u64,
     pub oracle: OracleParams,
-    /// Standard deviation of the IMU heading, radians.
-    pub imu_yaw_sigma: f64,
+    pub imu: ImuParams,
+}
+
+/// How the IMU's attitude output differs from the truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuParams {
+    /// White noise on roll and pitch, per frame, radians.
+    pub roll_pitch_sigma: f64,
+    /// White noise on the heading, per frame, radians.
+    pub yaw_sigma: f64,
+    /// A constant heading bias (magnetometer calibration), radians.
+    pub yaw_bias: f64,
+}
+
+impl Default for ImuParams {
+    fn default() -> Self {
+        Self {
+            roll_pitch_sigma: 0.1f64.to_radians(),
+            yaw_sigma: 0.2f64.to_radians(),
+            yaw_bias: 0.0,
+        }
+    }
 }
 
 impl Scenario {
@@ -29,17 +51,42 @@ impl Scenario {
     pub fn seed(seed: u64) -> Self {
         Self {
             world: World::seed_field(),
-            flight: StraightFlight::seed_centre_line(),
+            flight: Flight::Straight(StraightFlight::seed_centre_line()),
             camera: PinholeCamera::default_hd(),
             fps: 30.0,
             seed,
             oracle: OracleParams::default(),
-            imu_yaw_sigma: 0.2f64.to_radians(),
+            imu: ImuParams {
+                roll_pitch_sigma: 0.0,
+                ..ImuParams::default()
+            },
+        }
+    }
+
+    /// A quadrotor flying a named plan (see `waypoints::PRESETS`) over `world`.
+    pub fn preset(world: World, plan: &str, seed: u64) -> Result<Self, PlanError> {
+        Ok(Self::flying(world, &FlightPlan::preset(plan)?, seed))
+    }
+
+    /// A quadrotor flying `plan` over `world` with default dynamics, camera and sensors.
+    pub fn flying(world: World, plan: &FlightPlan, seed: u64) -> Self {
+        Self {
+            world,
+            flight: Flight::Quad(fly(plan, &QuadParams::default(), seed)),
+            camera: PinholeCamera::default_hd(),
+            fps: 30.0,
+            seed,
+            oracle: OracleParams::default(),
+            imu: ImuParams::default(),
         }
     }
 
     pub fn frame_count(&self) -> u64 {
-        (self.flight.duration_s * self.fps).floor() as u64
+        (self.flight.duration_s() * self.fps).floor() as u64
+    }
+
+    pub fn start_in_world(&self) -> nalgebra::Point3<f64> {
+        self.flight.start_in_world()
     }
 
     pub fn truth(&self, seq: u64) -> FrameTruth {
@@ -51,7 +98,7 @@ impl Scenario {
     pub fn frames(&self) -> impl Iterator<Item = (FrameTruth, DetectionFrame)> + '_ {
         let mut oracle = OracleDetector::new(self.oracle, self.seed);
         let mut imu_rng = ChaCha8Rng::seed_from_u64(self.seed ^ 0x1_0000);
-        let yaw_sigma = self.imu_yaw_sigma.max(0.0);
+        let imu = self.imu;
         let (w, h) = (
             f64::from(self.camera.intrinsics.width),
             f64::from(self.camera.intrinsics.height),
@@ -59,8 +106,13 @@ impl Scenario {
         (0..self.frame_count()).map(move |seq| {
             let truth = self.truth(seq);
             let detections = oracle.detect(&truth, w, h);
+            let mut noise = |sigma: f64| sigma.max(0.0) * imu_rng.sample::<f64, _>(StandardNormal);
             let mut imu_attitude = truth.pose.attitude;
-            imu_attitude.yaw += yaw_sigma * imu_rng.sample::<f64, _>(StandardNormal);
+            imu_attitude.yaw += imu.yaw_bias + noise(imu.yaw_sigma);
+            if imu.roll_pitch_sigma > 0.0 {
+                imu_attitude.roll += noise(imu.roll_pitch_sigma);
+                imu_attitude.pitch += noise(imu.roll_pitch_sigma);
+            }
             let input = DetectionFrame {
                 seq,
                 time_s: truth.time_s,

@@ -6,7 +6,7 @@ use nalgebra::{Point3, Vector3};
 use towernav_geometry::{PinholeCamera, PixelBox, Pose};
 use towernav_protocol::TowerType;
 
-use crate::world::{SimTower, World};
+use crate::world::{Distractor, SimTower, World};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct TruthBox {
@@ -18,6 +18,8 @@ pub struct TruthBox {
     pub truncated: bool,
     /// Horizontal distance from the camera to the tower axis.
     pub distance_m: f64,
+    /// Share of the box hidden behind nearer objects' boxes, 0..1.
+    pub occluded: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -44,19 +46,14 @@ pub fn truth_box(camera: &PinholeCamera, pose: &Pose, tower: &SimTower) -> Optio
     }
     let project = |p: Point3<f64>| camera.project(&(camera_from_world * p));
     let (top_px, foot_px) = (project(top)?, project(foot)?);
-    // Horizontal extent: the lattice's square section, tapering to a third at the top.
+    // Horizontal extent: every point of the 3-D model, cross-arms included.
+    let world_from_tower = tower.world_from_tower();
     let mut left = f64::INFINITY;
     let mut right = f64::NEG_INFINITY;
-    for (z, half) in [
-        (0.0, tower.base_width_m / 2.0),
-        (tower.height_m, tower.base_width_m / 6.0),
-    ] {
-        for (dx, dy) in [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)] {
-            let corner = foot + Vector3::new(dx * half, dy * half, z);
-            let px = project(corner)?;
-            left = left.min(px.x);
-            right = right.max(px.x);
-        }
+    for vertex in tower.model().vertices() {
+        let px = project(world_from_tower * vertex)?;
+        left = left.min(px.x);
+        right = right.max(px.x);
     }
     let full = PixelBox::new(left, top_px.y, right, foot_px.y);
     let k = &camera.intrinsics;
@@ -71,7 +68,64 @@ pub fn truth_box(camera: &PinholeCamera, pose: &Pose, tower: &SimTower) -> Optio
         bbox,
         truncated: bbox != full,
         distance_m: horizontal,
+        occluded: 0.0,
     })
+}
+
+/// Image box of a distractor, with its horizontal distance; `None` out of view.
+fn distractor_box(camera: &PinholeCamera, pose: &Pose, d: &Distractor) -> Option<(PixelBox, f64)> {
+    let camera_from_world = camera.world_from_camera(pose).inverse();
+    let mut b = PixelBox::new(
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for corner in d.bounding_corners() {
+        let px = camera.project(&(camera_from_world * corner))?;
+        b = PixelBox::new(
+            b.left.min(px.x),
+            b.top.min(px.y),
+            b.right.max(px.x),
+            b.bottom.max(px.y),
+        );
+    }
+    let distance = (d.foot_in_world() - pose.position_in_world).xy().norm();
+    Some((b, distance))
+}
+
+/// Fill in each box's occluded share: the fraction of a 16x32 grid of points in
+/// it that fall inside the box of a nearer tower or distractor.
+fn mark_occlusion(boxes: &mut [TruthBox], blockers: &[(PixelBox, f64)]) {
+    const NX: usize = 16;
+    const NY: usize = 32;
+    let towers: Vec<(PixelBox, f64)> = boxes.iter().map(|b| (b.bbox, b.distance_m)).collect();
+    for b in boxes.iter_mut() {
+        let nearer: Vec<&PixelBox> = towers
+            .iter()
+            .chain(blockers)
+            .filter(|(_, d)| *d < b.distance_m - 1e-6)
+            .map(|(bb, _)| bb)
+            .filter(|bb| bb.iou(&b.bbox) > 0.0)
+            .collect();
+        if nearer.is_empty() {
+            continue;
+        }
+        let mut hidden = 0;
+        for i in 0..NX {
+            for j in 0..NY {
+                let x = b.bbox.left + b.bbox.width() * (i as f64 + 0.5) / NX as f64;
+                let y = b.bbox.top + b.bbox.height() * (j as f64 + 0.5) / NY as f64;
+                if nearer
+                    .iter()
+                    .any(|n| (n.left..=n.right).contains(&x) && (n.top..=n.bottom).contains(&y))
+                {
+                    hidden += 1;
+                }
+            }
+        }
+        b.occluded = f64::from(hidden) / (NX * NY) as f64;
+    }
 }
 
 pub fn frame_truth(
@@ -81,11 +135,18 @@ pub fn frame_truth(
     time_s: f64,
     pose: Pose,
 ) -> FrameTruth {
-    let boxes = world
+    let mut boxes: Vec<TruthBox> = world
         .towers
         .iter()
         .filter_map(|t| truth_box(camera, &pose, t))
         .collect();
+    let blockers: Vec<(PixelBox, f64)> = world
+        .distractors
+        .iter()
+        .filter(|d| matches!(d, Distractor::Building { .. } | Distractor::Tree { .. }))
+        .filter_map(|d| distractor_box(camera, &pose, d))
+        .collect();
+    mark_occlusion(&mut boxes, &blockers);
     FrameTruth {
         seq,
         time_s,
@@ -110,6 +171,7 @@ mod tests {
             foot_in_world: Point3::new(distance, 0.0, 0.0),
             height_m: 32.0,
             base_width_m: 6.0,
+            line_yaw: 0.0,
         };
         (PinholeCamera::default_hd(), pose, tower)
     }
@@ -124,7 +186,8 @@ mod tests {
             "{} vs {expected}",
             b.bbox.height()
         );
-        assert!((b.bbox.center_x() - camera.intrinsics.cx).abs() < 1e-9);
+        // The cross-arm stands across the line, symmetric about the axis.
+        assert!((b.bbox.center_x() - camera.intrinsics.cx).abs() < 1e-6);
         assert!(!b.truncated);
     }
 
@@ -134,6 +197,26 @@ mod tests {
         assert!(truth_box(&camera, &pose, &tower).is_none());
         let (camera, pose, tower) = tower_ahead(MAX_RANGE_M + 1.0);
         assert!(truth_box(&camera, &pose, &tower).is_none());
+    }
+
+    #[test]
+    fn a_tower_behind_a_nearer_one_is_marked_occluded() {
+        let (camera, pose, near) = tower_ahead(150.0);
+        let far = SimTower {
+            id: "C1".into(),
+            foot_in_world: Point3::new(300.0, 0.0, 0.0),
+            ..near.clone()
+        };
+        let world = World {
+            datum: World::seed_field().datum,
+            towers: vec![near, far],
+            lines: Vec::new(),
+            distractors: Vec::new(),
+        };
+        let truth = frame_truth(&camera, &world, 0, 0.0, pose);
+        let (near, far) = (&truth.boxes[0], &truth.boxes[1]);
+        assert_eq!(near.occluded, 0.0);
+        assert!(far.occluded > 0.9, "{}", far.occluded);
     }
 
     #[test]

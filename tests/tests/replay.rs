@@ -9,7 +9,7 @@ use towernav_sim::Scenario;
 fn a_recorded_flight_replays_to_the_same_fixes() -> anyhow::Result<()> {
     let scenario = Scenario::seed(5);
     let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
-    let config = PipelineConfig::new(scenario.camera, scenario.flight.start_in_world);
+    let config = PipelineConfig::new(scenario.camera, scenario.start_in_world());
 
     let recording: Vec<Vec<u8>> = scenario
         .frames()

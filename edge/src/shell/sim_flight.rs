@@ -56,7 +56,7 @@ pub async fn fly(
     mut sync: Option<&mut LandmarkSync>,
     mut on_frame: impl FnMut(u64),
 ) -> Result<FlightRecord, ShellError> {
-    let start = scenario.flight.start_in_world;
+    let start = scenario.start_in_world();
     let takeoff = start + Vector3::new(options.takeoff_error_m.0, options.takeoff_error_m.1, 0.0);
     let mut pipeline = Pipeline::new(PipelineConfig::new(scenario.camera, takeoff), map);
     let datum = scenario.world.datum;

@@ -1,0 +1,130 @@
+//! `towernav-sim flight`: fly one plan and write its trajectory, truth, MOT
+//! ground truth and, optionally, every rendered frame.
+
+use std::path::Path;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use towernav_sim::{Conditions, Renderer, Scenario};
+
+use crate::cli::mot;
+
+pub fn progress(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} {per_sec} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// Write `trajectory.csv`, `truth.csv`, `mot/<name>/` and, with `images`, `mot/<name>/img1/*.jpg`.
+pub fn write_flight(
+    scenario: &Scenario,
+    name: &str,
+    out: &Path,
+    images: bool,
+    conditions: &Conditions,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let traj_path = out.join("trajectory.csv");
+    let truth_path = out.join("truth.csv");
+    let mut traj = csv::Writer::from_path(&traj_path)
+        .with_context(|| format!("creating {}", traj_path.display()))?;
+    let mut truth_csv = csv::Writer::from_path(&truth_path)
+        .with_context(|| format!("creating {}", truth_path.display()))?;
+    traj.write_record([
+        "seq",
+        "time_s",
+        "east_m",
+        "north_m",
+        "up_m",
+        "roll_rad",
+        "pitch_rad",
+        "yaw_rad",
+        "imu_roll_rad",
+        "imu_pitch_rad",
+        "imu_yaw_rad",
+    ])?;
+    truth_csv.write_record([
+        "seq",
+        "tower_id",
+        "type",
+        "left",
+        "top",
+        "right",
+        "bottom",
+        "truncated",
+        "occluded",
+        "distance_m",
+    ])?;
+    let seq_dir = out.join("mot").join(name);
+    let img_dir = seq_dir.join("img1");
+    if images {
+        std::fs::create_dir_all(&img_dir)
+            .with_context(|| format!("creating {}", img_dir.display()))?;
+    }
+    let renderer = images.then(|| Renderer::new(&scenario.world, scenario.camera, scenario.seed));
+    let mut buffers = renderer.as_ref().map(Renderer::buffers);
+    let bar = progress(scenario.frame_count(), "flight");
+    let mut truths = Vec::with_capacity(scenario.frame_count() as usize);
+    for (truth, input) in scenario.frames() {
+        let p = &truth.pose;
+        let a = &p.attitude;
+        let imu = &input.imu_attitude;
+        let values = [
+            truth.time_s,
+            p.position_in_world.x,
+            p.position_in_world.y,
+            p.position_in_world.z,
+            a.roll,
+            a.pitch,
+            a.yaw,
+            imu.roll,
+            imu.pitch,
+            imu.yaw,
+        ];
+        let mut row = vec![truth.seq.to_string()];
+        row.extend(values.iter().map(|v| format!("{v:.6}")));
+        traj.write_record(&row)?;
+        for b in &truth.boxes {
+            truth_csv.write_record([
+                truth.seq.to_string(),
+                b.tower_id.clone(),
+                b.tower_type.to_string(),
+                format!("{:.2}", b.bbox.left),
+                format!("{:.2}", b.bbox.top),
+                format!("{:.2}", b.bbox.right),
+                format!("{:.2}", b.bbox.bottom),
+                b.truncated.to_string(),
+                format!("{:.3}", b.occluded),
+                format!("{:.2}", b.distance_m),
+            ])?;
+        }
+        if let (Some(renderer), Some(buffers)) = (&renderer, &mut buffers) {
+            let rates = scenario.flight.attitude_rates(truth.time_s);
+            renderer.render_into(buffers, p, conditions, rates, scenario.seed ^ truth.seq);
+            let path = img_dir.join(format!("{:06}.jpg", truth.seq + 1));
+            buffers
+                .image
+                .save(&path)
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+        truths.push(truth);
+        bar.inc(1);
+    }
+    bar.finish();
+    traj.flush()?;
+    truth_csv.flush()?;
+    let k = &scenario.camera.intrinsics;
+    mot::write_sequence(
+        &seq_dir,
+        name,
+        &scenario.world,
+        &truths,
+        scenario.fps,
+        (k.width, k.height),
+    )
+}

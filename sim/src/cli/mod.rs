@@ -1,0 +1,6 @@
+//! The command-line shell around the simulator: files, images, progress bars.
+
+pub mod dataset;
+pub mod flight_cmd;
+pub mod mot;
+pub mod overlay;

@@ -1,0 +1,357 @@
+//! Towers, power lines and distractors as antialiased vector shapes, drawn far
+//! to near so nearer objects hide farther ones.
+
+use nalgebra::{Isometry3, Point2, Point3, Vector3};
+use tiny_skia::{FillRule, LineCap, Paint, PathBuilder, Pixmap, Shader, Stroke, Transform};
+use towernav_geometry::PinholeCamera;
+
+use super::conditions::Conditions;
+use crate::tower_model::MemberKind;
+use crate::world::{Distractor, World};
+
+/// Points closer than this to the camera plane are clipped away.
+const NEAR_M: f64 = 0.5;
+
+/// A tower's members in world coordinates, grouped by kind.
+pub struct TowerGeometry {
+    pub members: Vec<(MemberKind, Point3<f64>, Point3<f64>)>,
+    pub axis_mid_in_world: Point3<f64>,
+}
+
+/// A conductor span between two towers, sampled along its sag.
+pub struct Span {
+    pub points_in_world: Vec<Point3<f64>>,
+}
+
+pub fn tower_geometry(world: &World) -> Vec<TowerGeometry> {
+    world
+        .towers
+        .iter()
+        .map(|t| {
+            let world_from_tower = t.world_from_tower();
+            let members = t
+                .model()
+                .members
+                .iter()
+                .map(|m| (m.kind, world_from_tower * m.a, world_from_tower * m.b))
+                .collect();
+            TowerGeometry {
+                members,
+                axis_mid_in_world: t.foot_in_world + Vector3::new(0.0, 0.0, t.height_m / 2.0),
+            }
+        })
+        .collect()
+}
+
+/// Conductors hang between matching attachment points of neighbours on a line,
+/// with a parabolic sag of 3 % of the span.
+pub fn spans(world: &World) -> Vec<Span> {
+    let mut out = Vec::new();
+    for line in &world.lines {
+        for pair in line.windows(2) {
+            let (a, b) = (&world.towers[pair[0]], &world.towers[pair[1]]);
+            let (ma, mb) = (a.model(), b.model());
+            let (wa, wb) = (a.world_from_tower(), b.world_from_tower());
+            for (pa, pb) in ma.attachments.iter().zip(&mb.attachments) {
+                let (pa, pb) = (wa * pa, wb * pb);
+                let sag = 0.03 * (pb - pa).norm();
+                let points_in_world = (0..=12)
+                    .map(|i| {
+                        let s = f64::from(i) / 12.0;
+                        pa + (pb - pa) * s - Vector3::new(0.0, 0.0, 4.0 * sag * s * (1.0 - s))
+                    })
+                    .collect();
+                out.push(Span { points_in_world });
+            }
+        }
+    }
+    out
+}
+
+enum Item<'a> {
+    Tower(&'a TowerGeometry),
+    Span(&'a Span),
+    Distractor(&'a Distractor),
+}
+
+pub struct Scene<'a> {
+    pub camera: &'a PinholeCamera,
+    pub camera_from_world: Isometry3<f64>,
+    pub conditions: &'a Conditions,
+}
+
+impl Scene<'_> {
+    fn depth(&self, p: &Point3<f64>) -> f64 {
+        (self.camera_from_world * p).z
+    }
+
+    fn pixel(&self, p_in_camera: &Point3<f64>) -> Option<Point2<f64>> {
+        self.camera.project(p_in_camera)
+    }
+
+    /// Segment in the image, clipped to the near plane; `None` if wholly behind.
+    fn segment(&self, a: &Point3<f64>, b: &Point3<f64>) -> Option<(Point2<f64>, Point2<f64>)> {
+        let (mut a, mut b) = (self.camera_from_world * a, self.camera_from_world * b);
+        if a.z < NEAR_M && b.z < NEAR_M {
+            return None;
+        }
+        if a.z < NEAR_M {
+            a = a + (b - a) * ((NEAR_M - a.z) / (b.z - a.z));
+        } else if b.z < NEAR_M {
+            b = b + (a - b) * ((NEAR_M - b.z) / (a.z - b.z));
+        }
+        Some((self.pixel(&a)?, self.pixel(&b)?))
+    }
+
+    /// A colour lit by the day and hazed by distance, as a tiny-skia paint.
+    fn paint(&self, rgb: [f32; 3], distance_m: f64, alpha: f32) -> Paint<'static> {
+        let keep = self.conditions.transmittance(distance_m);
+        let haze = self.conditions.haze_colour();
+        let light = self.conditions.daylight();
+        let c = [0, 1, 2].map(|i| rgb[i] * light * keep + haze[i] * (1.0 - keep));
+        let mut paint = Paint {
+            anti_alias: true,
+            ..Paint::default()
+        };
+        paint.shader = Shader::SolidColor(
+            tiny_skia::Color::from_rgba(
+                c[0].clamp(0.0, 1.0),
+                c[1].clamp(0.0, 1.0),
+                c[2].clamp(0.0, 1.0),
+                alpha.clamp(0.0, 1.0),
+            )
+            .unwrap_or(tiny_skia::Color::BLACK),
+        );
+        paint
+    }
+
+    /// Stroke a path of `width_m` at `depth_m`: thinner than a pixel becomes a
+    /// one-pixel line with its coverage as alpha.
+    fn stroke(
+        &self,
+        pixmap: &mut Pixmap,
+        pb: PathBuilder,
+        rgb: [f32; 3],
+        width_m: f64,
+        depth_m: f64,
+        distance_m: f64,
+    ) {
+        let Some(path) = pb.finish() else { return };
+        let width_px = (width_m * self.camera.intrinsics.fx / depth_m.max(NEAR_M)) as f32;
+        let (width, alpha) = if width_px < 1.0 {
+            (1.0, width_px.max(0.12))
+        } else {
+            (width_px, 1.0)
+        };
+        let stroke = Stroke {
+            width,
+            line_cap: LineCap::Butt,
+            ..Stroke::default()
+        };
+        let paint = self.paint(rgb, distance_m, alpha);
+        pixmap.stroke_path(&path, &paint, &stroke, Transform::identity(), None);
+    }
+
+    fn draw_tower(&self, pixmap: &mut Pixmap, tower: &TowerGeometry) {
+        let depth = self.depth(&tower.axis_mid_in_world);
+        let distance = depth.max(1.0);
+        for kind in MemberKind::ALL {
+            let mut pb = PathBuilder::new();
+            for (k, a, b) in &tower.members {
+                if *k != kind {
+                    continue;
+                }
+                if let Some((pa, pb2)) = self.segment(a, b) {
+                    pb.move_to(pa.x as f32, pa.y as f32);
+                    pb.line_to(pb2.x as f32, pb2.y as f32);
+                }
+            }
+            let rgb = match kind {
+                MemberKind::Leg => [0.52, 0.54, 0.56],
+                MemberKind::Brace => [0.62, 0.64, 0.66],
+                MemberKind::Arm => [0.58, 0.60, 0.62],
+                MemberKind::Insulator => [0.20, 0.24, 0.30],
+            };
+            self.stroke(pixmap, pb, rgb, kind.width_m(), depth.max(2.0), distance);
+        }
+    }
+
+    /// Each piece of the sagging conductor gets the width its own depth gives:
+    /// a span can run from beside the camera to hundreds of metres away.
+    fn draw_span(&self, pixmap: &mut Pixmap, span: &Span) {
+        for pair in span.points_in_world.windows(2) {
+            let Some((a, b)) = self.segment(&pair[0], &pair[1]) else {
+                continue;
+            };
+            let depth = self
+                .depth(&nalgebra::center(&pair[0], &pair[1]))
+                .max(NEAR_M);
+            let mut pb = PathBuilder::new();
+            pb.move_to(a.x as f32, a.y as f32);
+            pb.line_to(b.x as f32, b.y as f32);
+            // Conductors are ~3 cm across: faint hairlines except close up.
+            self.stroke(pixmap, pb, [0.25, 0.25, 0.28], 0.03, depth, depth);
+        }
+    }
+
+    fn draw_distractor(&self, pixmap: &mut Pixmap, d: &Distractor) {
+        let depth = self.depth(&d.foot_in_world());
+        if depth < NEAR_M {
+            return;
+        }
+        match *d {
+            Distractor::Tree {
+                foot_in_world,
+                height_m,
+                crown_radius_m,
+            } => {
+                let crown = foot_in_world + Vector3::new(0.0, 0.0, height_m - crown_radius_m);
+                let mut trunk = PathBuilder::new();
+                if let Some((a, b)) = self.segment(&foot_in_world, &crown) {
+                    trunk.move_to(a.x as f32, a.y as f32);
+                    trunk.line_to(b.x as f32, b.y as f32);
+                }
+                self.stroke(pixmap, trunk, [0.30, 0.22, 0.15], 0.4, depth, depth);
+                let centre = self.camera_from_world * crown;
+                if let Some(c) = self.pixel(&centre) {
+                    let r = (crown_radius_m * self.camera.intrinsics.fx / centre.z) as f32;
+                    if let Some(path) = PathBuilder::from_circle(c.x as f32, c.y as f32, r.max(0.5))
+                    {
+                        let paint = self.paint([0.16, 0.30, 0.12], depth, 1.0);
+                        pixmap.fill_path(
+                            &path,
+                            &paint,
+                            FillRule::Winding,
+                            Transform::identity(),
+                            None,
+                        );
+                    }
+                }
+            }
+            Distractor::Building { .. } => {
+                let corners = d.bounding_corners();
+                let projected: Vec<Point2<f64>> = corners
+                    .iter()
+                    .filter_map(|p| {
+                        let c = self.camera_from_world * p;
+                        (c.z > NEAR_M).then(|| self.pixel(&c)).flatten()
+                    })
+                    .collect();
+                if projected.len() < 8 {
+                    return;
+                }
+                self.fill_hull(pixmap, &projected, [0.62, 0.58, 0.52], depth);
+                self.fill_hull(pixmap, &projected[4..], [0.55, 0.30, 0.25], depth);
+            }
+            Distractor::Pole {
+                foot_in_world,
+                height_m,
+            } => {
+                let top = foot_in_world + Vector3::new(0.0, 0.0, height_m);
+                // A cross-bar 0.6 m below the top, 1.6 m wide.
+                let bar_centre = top - Vector3::new(0.0, 0.0, 0.6);
+                let half_bar = Vector3::new(0.0, 0.8, 0.0);
+                let mut pb = PathBuilder::new();
+                for (a, b) in [
+                    (foot_in_world, top),
+                    (bar_centre - half_bar, bar_centre + half_bar),
+                ] {
+                    if let Some((pa, pb2)) = self.segment(&a, &b) {
+                        pb.move_to(pa.x as f32, pa.y as f32);
+                        pb.line_to(pb2.x as f32, pb2.y as f32);
+                    }
+                }
+                self.stroke(pixmap, pb, [0.42, 0.36, 0.30], 0.3, depth, depth);
+            }
+        }
+    }
+
+    fn fill_hull(&self, pixmap: &mut Pixmap, points: &[Point2<f64>], rgb: [f32; 3], distance: f64) {
+        let hull = convex_hull(points);
+        let mut pb = PathBuilder::new();
+        for (i, p) in hull.iter().enumerate() {
+            if i == 0 {
+                pb.move_to(p.x as f32, p.y as f32);
+            } else {
+                pb.line_to(p.x as f32, p.y as f32);
+            }
+        }
+        pb.close();
+        if let Some(path) = pb.finish() {
+            let paint = self.paint(rgb, distance, 1.0);
+            pixmap.fill_path(
+                &path,
+                &paint,
+                FillRule::Winding,
+                Transform::identity(),
+                None,
+            );
+        }
+    }
+
+    /// Draw everything in front of the camera, farthest first.
+    pub fn draw(
+        &self,
+        pixmap: &mut Pixmap,
+        towers: &[TowerGeometry],
+        spans: &[Span],
+        distractors: &[Distractor],
+    ) {
+        let mut items: Vec<(f64, Item)> = Vec::with_capacity(towers.len() + spans.len());
+        let eye = self.camera_from_world.inverse().translation.vector;
+        let range = |p: &Point3<f64>| (p.coords - eye).xy().norm();
+        items.extend(
+            towers
+                .iter()
+                .map(|t| (range(&t.axis_mid_in_world), Item::Tower(t))),
+        );
+        items.extend(spans.iter().map(|s| {
+            let mid = &s.points_in_world[s.points_in_world.len() / 2];
+            // Wires hang in front of the towers they join from most viewpoints.
+            (range(mid) - 1.0, Item::Span(s))
+        }));
+        if self.conditions.distractors {
+            items.extend(
+                distractors
+                    .iter()
+                    .map(|d| (range(&d.foot_in_world()), Item::Distractor(d))),
+            );
+        }
+        items.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (_, item) in items {
+            match item {
+                Item::Tower(t) => self.draw_tower(pixmap, t),
+                Item::Span(s) => self.draw_span(pixmap, s),
+                Item::Distractor(d) => self.draw_distractor(pixmap, d),
+            }
+        }
+    }
+}
+
+/// Andrew's monotone chain: the convex hull, counter-clockwise.
+fn convex_hull(points: &[Point2<f64>]) -> Vec<Point2<f64>> {
+    let mut pts: Vec<Point2<f64>> = points.to_vec();
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    let cross = |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| {
+        (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
+    };
+    let mut hull: Vec<Point2<f64>> = Vec::with_capacity(pts.len() * 2);
+    let chain = |hull: &mut Vec<Point2<f64>>, p: &Point2<f64>, start: usize| {
+        while hull.len() >= start + 2
+            && cross(&hull[hull.len() - 2], &hull[hull.len() - 1], p) <= 0.0
+        {
+            hull.pop();
+        }
+        hull.push(*p);
+    };
+    for p in &pts {
+        chain(&mut hull, p, 0);
+    }
+    hull.pop();
+    let upper = hull.len();
+    for p in pts.iter().rev() {
+        chain(&mut hull, p, upper);
+    }
+    hull.pop();
+    hull
+}
