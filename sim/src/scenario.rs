@@ -47,7 +47,9 @@ impl Default for ImuParams {
 }
 
 impl Scenario {
-    /// The seed's field and centre-line flight at 30 frames/s with a 1280x720 camera.
+    /// The walking skeleton's scenario: the seed's field, the level centre-line
+    /// flight at 30 frames/s, a 1280x720 camera, and the skeleton's simple oracle.
+    /// `preset` gives quadrotor attitude and the realistic oracle.
     pub fn seed(seed: u64) -> Self {
         Self {
             world: World::seed_field(),
@@ -55,7 +57,7 @@ impl Scenario {
             camera: PinholeCamera::default_hd(),
             fps: 30.0,
             seed,
-            oracle: OracleParams::default(),
+            oracle: OracleParams::skeleton(),
             imu: ImuParams {
                 roll_pitch_sigma: 0.0,
                 ..ImuParams::default()

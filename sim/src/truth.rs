@@ -28,6 +28,8 @@ pub struct FrameTruth {
     pub time_s: f64,
     pub pose: Pose,
     pub boxes: Vec<TruthBox>,
+    /// Boxes of the distractors in view: where a real detector might fire falsely.
+    pub distractors: Vec<PixelBox>,
 }
 
 /// Towers farther than this are never labelled: a few pixels tall at best.
@@ -140,18 +142,33 @@ pub fn frame_truth(
         .iter()
         .filter_map(|t| truth_box(camera, &pose, t))
         .collect();
-    let blockers: Vec<(PixelBox, f64)> = world
+    let (w, h) = (
+        f64::from(camera.intrinsics.width),
+        f64::from(camera.intrinsics.height),
+    );
+    let in_view: Vec<(&Distractor, PixelBox, f64)> = world
         .distractors
         .iter()
-        .filter(|d| matches!(d, Distractor::Building { .. } | Distractor::Tree { .. }))
-        .filter_map(|d| distractor_box(camera, &pose, d))
+        .filter_map(|d| {
+            let (b, dist) = distractor_box(camera, &pose, d)?;
+            let clipped = b.clipped(w, h);
+            (dist <= MAX_RANGE_M && clipped.width() > 0.0 && clipped.height() >= MIN_BOX_HEIGHT_PX)
+                .then_some((d, clipped, dist))
+        })
+        .collect();
+    let blockers: Vec<(PixelBox, f64)> = in_view
+        .iter()
+        .filter(|(d, _, _)| matches!(d, Distractor::Building { .. } | Distractor::Tree { .. }))
+        .map(|&(_, b, dist)| (b, dist))
         .collect();
     mark_occlusion(&mut boxes, &blockers);
+    let distractors = in_view.iter().map(|&(_, b, _)| b).collect();
     FrameTruth {
         seq,
         time_s,
         pose,
         boxes,
+        distractors,
     }
 }
 
