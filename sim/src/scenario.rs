@@ -10,9 +10,10 @@ use towernav_protocol::DetectionFrame;
 use crate::flight::{Flight, StraightFlight};
 use crate::oracle::{OracleDetector, OracleParams};
 use crate::quadrotor::{QuadParams, fly};
-use crate::truth::{FrameTruth, frame_truth};
+use crate::truth::{FrameTruth, frame_truth, outlines};
 use crate::waypoints::{FlightPlan, PlanError};
 use crate::world::World;
+use nalgebra::Point3;
 
 #[derive(Debug, Clone)]
 pub struct Scenario {
@@ -87,13 +88,24 @@ impl Scenario {
         (self.flight.duration_s() * self.fps).floor() as u64
     }
 
-    pub fn start_in_world(&self) -> nalgebra::Point3<f64> {
+    pub fn start_in_world(&self) -> Point3<f64> {
         self.flight.start_in_world()
     }
 
     pub fn truth(&self, seq: u64) -> FrameTruth {
+        self.truth_with(&outlines(&self.world), seq)
+    }
+
+    fn truth_with(&self, outlines: &[Vec<Point3<f64>>], seq: u64) -> FrameTruth {
         let t = seq as f64 / self.fps;
-        frame_truth(&self.camera, &self.world, seq, t, self.flight.pose_at(t))
+        frame_truth(
+            &self.camera,
+            &self.world,
+            outlines,
+            seq,
+            t,
+            self.flight.pose_at(t),
+        )
     }
 
     /// Truth and what the pipeline sees (detections, IMU with heading noise) for every frame, in order; deterministic in `seed`.
@@ -105,8 +117,9 @@ impl Scenario {
             f64::from(self.camera.intrinsics.width),
             f64::from(self.camera.intrinsics.height),
         );
+        let outlines = outlines(&self.world);
         (0..self.frame_count()).map(move |seq| {
-            let truth = self.truth(seq);
+            let truth = self.truth_with(&outlines, seq);
             let detections = oracle.detect(&truth, w, h);
             let mut noise = |sigma: f64| sigma.max(0.0) * imu_rng.sample::<f64, _>(StandardNormal);
             let mut imu_attitude = truth.pose.attitude;

@@ -39,6 +39,34 @@ pub const MIN_BOX_HEIGHT_PX: f64 = 4.0;
 
 /// The truth box of one tower, or `None` if it is not in view.
 pub fn truth_box(camera: &PinholeCamera, pose: &Pose, tower: &SimTower) -> Option<TruthBox> {
+    truth_box_with(camera, pose, tower, &outline(tower))
+}
+
+/// A tower's distinct model points in the world frame: all a box must enclose.
+pub fn outline(tower: &SimTower) -> Vec<Point3<f64>> {
+    let world_from_tower = tower.world_from_tower();
+    let mut points: Vec<Point3<f64>> = Vec::new();
+    for v in tower.model().vertices() {
+        let p = world_from_tower * v;
+        if !points.iter().any(|q| (q - p).norm_squared() < 1e-12) {
+            points.push(p);
+        }
+    }
+    points
+}
+
+/// Every tower's outline, in world order: computed once per world, used every frame.
+pub fn outlines(world: &World) -> Vec<Vec<Point3<f64>>> {
+    world.towers.iter().map(outline).collect()
+}
+
+/// `truth_box` with the tower's `outline` already computed.
+pub fn truth_box_with(
+    camera: &PinholeCamera,
+    pose: &Pose,
+    tower: &SimTower,
+    outline_in_world: &[Point3<f64>],
+) -> Option<TruthBox> {
     let camera_from_world = camera.world_from_camera(pose).inverse();
     let foot = tower.foot_in_world;
     let top = foot + Vector3::new(0.0, 0.0, tower.height_m);
@@ -49,11 +77,10 @@ pub fn truth_box(camera: &PinholeCamera, pose: &Pose, tower: &SimTower) -> Optio
     let project = |p: Point3<f64>| camera.project(&(camera_from_world * p));
     let (top_px, foot_px) = (project(top)?, project(foot)?);
     // Horizontal extent: every point of the 3-D model, cross-arms included.
-    let world_from_tower = tower.world_from_tower();
     let mut left = f64::INFINITY;
     let mut right = f64::NEG_INFINITY;
-    for vertex in tower.model().vertices() {
-        let px = project(world_from_tower * vertex)?;
+    for vertex in outline_in_world {
+        let px = project(*vertex)?;
         left = left.min(px.x);
         right = right.max(px.x);
     }
@@ -130,9 +157,11 @@ fn mark_occlusion(boxes: &mut [TruthBox], blockers: &[(PixelBox, f64)]) {
     }
 }
 
+/// Truth for one frame; `outlines` as `outlines(world)` gives them.
 pub fn frame_truth(
     camera: &PinholeCamera,
     world: &World,
+    outlines: &[Vec<Point3<f64>>],
     seq: u64,
     time_s: f64,
     pose: Pose,
@@ -140,7 +169,8 @@ pub fn frame_truth(
     let mut boxes: Vec<TruthBox> = world
         .towers
         .iter()
-        .filter_map(|t| truth_box(camera, &pose, t))
+        .zip(outlines)
+        .filter_map(|(t, o)| truth_box_with(camera, &pose, t, o))
         .collect();
     let (w, h) = (
         f64::from(camera.intrinsics.width),
@@ -230,7 +260,7 @@ mod tests {
             lines: Vec::new(),
             distractors: Vec::new(),
         };
-        let truth = frame_truth(&camera, &world, 0, 0.0, pose);
+        let truth = frame_truth(&camera, &world, &outlines(&world), 0, 0.0, pose);
         let (near, far) = (&truth.boxes[0], &truth.boxes[1]);
         assert_eq!(near.occluded, 0.0);
         assert!(far.occluded > 0.9, "{}", far.occluded);

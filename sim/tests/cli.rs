@@ -1,0 +1,195 @@
+//! The `towernav-sim` commands write what they promise: YOLO datasets split by
+//! world, MOT ground truth, flights and a rendered picture.
+
+use std::path::Path;
+use std::process::Command;
+
+fn sim(args: &[&str]) -> std::process::Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_towernav-sim"))
+        .args(args)
+        .output()
+        .expect("run towernav-sim");
+    assert!(
+        out.status.success(),
+        "towernav-sim {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn files(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn dataset_writes_yolo_splits_by_world_and_mot_truth() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("ds");
+    let out_s = out.to_str().expect("utf-8 path");
+    sim(&[
+        "dataset",
+        "--out",
+        out_s,
+        "--worlds",
+        "3",
+        "--frames-per-world",
+        "2",
+        "--seed",
+        "7",
+    ]);
+    let yaml = std::fs::read_to_string(out.join("data.yaml")).expect("data.yaml");
+    for line in [
+        "train: images/train",
+        "val: images/val",
+        "test: images/test",
+        "0: A",
+        "3: D",
+    ] {
+        assert!(yaml.contains(line), "data.yaml lacks {line:?}:\n{yaml}");
+    }
+    let mut worlds_seen = Vec::new();
+    for split in ["train", "val", "test"] {
+        let images = files(&out.join("images").join(split));
+        let labels = files(&out.join("labels").join(split));
+        assert_eq!(images.len(), 2, "{split}: {images:?}");
+        let stems = |v: &[String]| -> Vec<String> {
+            v.iter()
+                .map(|n| n.rsplit_once('.').expect("ext").0.to_string())
+                .collect()
+        };
+        assert_eq!(
+            stems(&images),
+            stems(&labels),
+            "{split}: every image has a label file"
+        );
+        let world = images[0]
+            .split('_')
+            .next()
+            .expect("world prefix")
+            .to_string();
+        assert!(
+            images.iter().all(|n| n.starts_with(&world)),
+            "one world per split here"
+        );
+        worlds_seen.push(world.clone());
+        for label in &labels {
+            let text =
+                std::fs::read_to_string(out.join("labels").join(split).join(label)).expect("label");
+            for line in text.lines() {
+                let v: Vec<f64> = line
+                    .split(' ')
+                    .map(|x| x.parse().expect("number"))
+                    .collect();
+                assert_eq!(v.len(), 5, "{line}");
+                assert!(
+                    (0.0..=3.0).contains(&v[0]) && v[0].fract() == 0.0,
+                    "class {line}"
+                );
+                assert!(
+                    v[1..].iter().all(|x| (0.0..=1.0).contains(x)),
+                    "normalised {line}"
+                );
+            }
+        }
+        let seq = out.join("mot").join(split).join(&world);
+        let ini = std::fs::read_to_string(seq.join("seqinfo.ini")).expect("seqinfo");
+        assert!(
+            ini.contains("frameRate=30") && ini.contains("imWidth=1280"),
+            "{ini}"
+        );
+        let gt = std::fs::read_to_string(seq.join("gt").join("gt.txt")).expect("gt");
+        let first: Vec<&str> = gt.lines().next().expect("a box").split(',').collect();
+        assert_eq!(first.len(), 9, "MOT gt has 9 columns");
+    }
+    worlds_seen.dedup();
+    assert_eq!(
+        worlds_seen.len(),
+        3,
+        "train, val and test hold different worlds"
+    );
+    let img = image::open(
+        out.join("images/train")
+            .join(&files(&out.join("images/train"))[0]),
+    )
+    .expect("a readable JPEG");
+    assert_eq!((img.width(), img.height()), (1280, 720));
+}
+
+#[test]
+fn flight_and_render_write_trajectory_truth_and_a_picture() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("flight");
+    sim(&[
+        "flight",
+        "--preset",
+        "straight",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    let traj = std::fs::read_to_string(out.join("trajectory.csv")).expect("trajectory");
+    let rows = traj.lines().count() - 1;
+    assert!(
+        (2700..3000).contains(&rows),
+        "{rows} frames of a ~95 s flight at 30 fps"
+    );
+    let gt = std::fs::read_to_string(out.join("mot/straight/gt/gt.txt")).expect("gt");
+    assert!(gt.lines().count() > rows, "several towers per frame");
+    let png = dir.path().join("frame.png");
+    sim(&[
+        "render",
+        "--preset",
+        "seed-path-1",
+        "--time",
+        "20",
+        "--out",
+        png.to_str().expect("utf-8"),
+    ]);
+    let img = image::open(&png).expect("PNG");
+    assert_eq!((img.width(), img.height()), (1280, 720));
+}
+
+#[test]
+fn bad_plans_and_times_are_refused_with_the_reason() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("bad.toml");
+    std::fs::write(
+        &plan,
+        "name = \"x\"\n[[waypoint]]\neast_m = 0\nnorth_m = 0\nheight_m = 30\nspeed_mps = 10\n",
+    )
+    .expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_towernav-sim"))
+        .args([
+            "flight",
+            "--plan",
+            plan.to_str().expect("utf-8"),
+            "--out",
+            dir.path().join("o").to_str().expect("utf-8"),
+        ])
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.toml") && err.contains("at least two waypoints"),
+        "{err}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_towernav-sim"))
+        .args([
+            "render",
+            "--time",
+            "9999",
+            "--out",
+            dir.path().join("x.png").to_str().expect("utf-8"),
+        ])
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--time 9999"),
+        "{err}"
+    );
+}
