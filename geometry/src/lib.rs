@@ -10,7 +10,7 @@ pub mod frames;
 pub mod geodesy;
 pub mod pixel_box;
 
-pub use camera::{CameraMount, Intrinsics, PinholeCamera};
+pub use camera::{CameraMount, Intrinsics, PinholeCamera, RayGrid};
 pub use frames::{Attitude, Pose, wrap_angle};
 pub use geodesy::{Datum, Geodetic};
 pub use pixel_box::PixelBox;

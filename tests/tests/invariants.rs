@@ -87,3 +87,25 @@ fn only_protocol_formats_zenoh_keys() {
         );
     }
 }
+
+#[test]
+fn the_simulator_library_touches_no_files() {
+    let sim = root().join("sim/src");
+    let mut files = Vec::new();
+    rust_files(&sim, &mut files);
+    let library: Vec<_> = files
+        .into_iter()
+        .filter(|f| !f.starts_with(sim.join("cli")) && !f.ends_with("main.rs"))
+        .collect();
+    assert!(
+        library.len() > 8,
+        "found only {} library files",
+        library.len()
+    );
+    for file in library {
+        let text = std::fs::read_to_string(&file).expect("readable");
+        for banned in ["std::fs", "File::", "std::env"] {
+            assert!(!uses(&text, banned), "{} uses {banned}", file.display());
+        }
+    }
+}

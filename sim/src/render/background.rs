@@ -1,8 +1,8 @@
 //! Sky and ground for every pixel: ray through the pixel, flat ground plane at
 //! z = 0, a cloud layer above, haze by distance.
 
-use nalgebra::{Isometry3, Vector3};
-use towernav_geometry::Intrinsics;
+use nalgebra::Isometry3;
+use towernav_geometry::{CameraMount, Intrinsics, PinholeCamera};
 
 use super::conditions::Conditions;
 use super::textures::{CloudSheet, MipTexture, unpack};
@@ -22,17 +22,23 @@ pub fn draw(
     clouds: &CloudSheet,
 ) {
     let (w, h) = (k.width as usize, k.height as usize);
-    let (hw, hh) = (w.div_ceil(2), h.div_ceil(2));
-    let half_k = Intrinsics {
-        width: hw as u32,
-        height: hh as u32,
-        fx: k.fx / 2.0,
-        fy: k.fy / 2.0,
-        cx: k.cx / 2.0,
-        cy: k.cy / 2.0,
+    let half_camera = PinholeCamera {
+        intrinsics: k.scaled(0.5),
+        mount: CameraMount::default(),
     };
+    let (hw, hh) = (
+        half_camera.intrinsics.width as usize,
+        half_camera.intrinsics.height as usize,
+    );
     half.resize(hw * hh * 4, 0);
-    draw_full(half, &half_k, world_from_camera, conditions, ground, clouds);
+    draw_full(
+        half,
+        &half_camera,
+        world_from_camera,
+        conditions,
+        ground,
+        clouds,
+    );
     upsample_2x(half, hw, hh, rgba, w, h);
 }
 
@@ -82,17 +88,15 @@ fn upsample_2x(src: &[u8], sw: usize, sh: usize, dst: &mut [u8], w: usize, h: us
 
 fn draw_full(
     rgba: &mut [u8],
-    k: &Intrinsics,
+    camera: &PinholeCamera,
     world_from_camera: &Isometry3<f64>,
     conditions: &Conditions,
     ground: &MipTexture,
     clouds: &CloudSheet,
 ) {
-    let r = world_from_camera.rotation.to_rotation_matrix();
-    let m = r.matrix();
-    let du: Vector3<f64> = m.column(0) / k.fx;
-    let dv: Vector3<f64> = m.column(1) / k.fy;
-    let d0: Vector3<f64> = m.column(2) - du * k.cx - dv * k.cy;
+    let k = &camera.intrinsics;
+    let grid = camera.ray_grid(world_from_camera);
+    let (d0, du, dv) = (grid.at_origin, grid.per_u, grid.per_v);
     let eye = world_from_camera.translation.vector;
     let (ex, ey, ez) = (eye.x as f32, eye.y as f32, (eye.z as f32).max(0.1));
     let sun = conditions.sun_in_world();
