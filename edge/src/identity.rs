@@ -3,7 +3,8 @@
 //! Map-based association: every tower of the track's type is projected into the
 //! image from the current pose guess, and unbound tracks are matched to free
 //! towers by a Hungarian assignment on bearing and size. A binding holds until its
-//! track ends; an operator's correction pins it.
+//! track ends, unless it keeps disagreeing with a trusted pose; an operator's
+//! correction pins it.
 
 use std::collections::HashMap;
 
@@ -21,6 +22,11 @@ pub struct IdentityParams {
     pub log_size_sigma: f64,
     /// Gate on the normalised distance; farther candidates are never bound.
     pub gate: f64,
+    /// A bound track that stays this far outside the gate of its own tower for
+    /// `release_after` frames in a row (while the pose guess is trusted) is unbound,
+    /// so that a wrong early binding does not last the whole track.
+    pub release_gate: f64,
+    pub release_after: u32,
 }
 
 impl Default for IdentityParams {
@@ -29,6 +35,8 @@ impl Default for IdentityParams {
             bearing_sigma_px: 60.0,
             log_size_sigma: 0.3,
             gate: 3.0,
+            release_gate: 4.5,
+            release_after: 10,
         }
     }
 }
@@ -40,6 +48,8 @@ pub struct Identity {
     bindings: HashMap<u64, usize>,
     /// track id -> operator's choice (None: keep unbound).
     pinned: HashMap<u64, Option<usize>>,
+    /// track id -> frames in a row its binding disagreed with a trusted pose.
+    strikes: HashMap<u64, u32>,
 }
 
 impl Identity {
@@ -86,19 +96,67 @@ impl Identity {
         self.pinned.contains_key(&track_id)
     }
 
+    /// Normalised distance between a track's box and a tower's predicted one
+    /// (bearing and log size; size is skipped for a box cut by the image edge).
+    fn distance(&self, track: &TrackOutput, predicted: (f64, f64), image_height: f64) -> f64 {
+        let p = self.params;
+        let (u, h) = predicted;
+        let b = &track.bbox;
+        let bearing = (b.center_x() - u) / p.bearing_sigma_px;
+        let cut = b.top <= 1.0 || b.bottom >= image_height - 1.0;
+        let size = if cut || h <= 0.0 {
+            0.0
+        } else {
+            (b.height() / h).ln() / p.log_size_sigma
+        };
+        (bearing * bearing + size * size).sqrt()
+    }
+
     /// Binds this frame's tracks; returns each track's tower index, in order.
     /// `candidates` (towers near the pose guess) is asked only when some track is unbound.
+    /// With `guess_trusted` (the filter is tracking), bindings that keep
+    /// disagreeing with the guess are released.
+    #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
         tracks: &[TrackOutput],
         live_track_ids: &[u64],
         guess: &Pose,
+        guess_trusted: bool,
         camera: &PinholeCamera,
         map: &LandmarkMap,
         candidates: impl FnOnce() -> Vec<usize>,
     ) -> Vec<Option<usize>> {
         self.bindings.retain(|id, _| live_track_ids.contains(id));
         self.pinned.retain(|id, _| live_track_ids.contains(id));
+        self.strikes.retain(|id, _| live_track_ids.contains(id));
+        let camera_from_world = camera.world_from_camera(guess).inverse();
+        let image_height = f64::from(camera.intrinsics.height);
+        let predict = |i: usize| -> Option<(f64, f64)> {
+            let tower = &map.towers[i];
+            let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
+            let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
+            Some((0.5 * (foot.x + top.x), foot.y - top.y))
+        };
+        if guess_trusted {
+            for t in tracks {
+                let Some(&tower) = self.bindings.get(&t.track_id) else {
+                    continue;
+                };
+                if self.pinned.contains_key(&t.track_id) {
+                    continue;
+                }
+                let off = predict(tower).is_none_or(|pred| {
+                    self.distance(t, pred, image_height) > self.params.release_gate
+                });
+                let strikes = self.strikes.entry(t.track_id).or_insert(0);
+                *strikes = if off { *strikes + 1 } else { 0 };
+                if *strikes >= self.params.release_after {
+                    self.bindings.remove(&t.track_id);
+                    self.strikes.remove(&t.track_id);
+                }
+            }
+        }
 
         let unbound: Vec<&TrackOutput> = tracks
             .iter()
@@ -112,38 +170,19 @@ impl Identity {
                 .into_iter()
                 .filter(|i| !taken.contains(i))
                 .collect();
-            let camera_from_world = camera.world_from_camera(guess).inverse();
-            let predicted: Vec<Option<(f64, f64)>> = free
-                .iter()
-                .map(|&i| {
-                    let tower = &map.towers[i];
-                    let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
-                    let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
-                    Some((0.5 * (foot.x + top.x), foot.y - top.y))
-                })
-                .collect();
-            let k = &camera.intrinsics;
-            let p = self.params;
+            let predicted: Vec<Option<(f64, f64)>> = free.iter().map(|&i| predict(i)).collect();
             let matches = max_score_matching(
                 unbound.len(),
                 free.len(),
                 |r, c| {
                     let track = unbound[r];
-                    let Some((u, h)) = predicted[c] else {
+                    let Some(pred) = predicted[c] else {
                         return 0.0;
                     };
-                    if map.towers[free[c]].tower_type != track.tower_type || h <= 0.0 {
+                    if map.towers[free[c]].tower_type != track.tower_type || pred.1 <= 0.0 {
                         return 0.0;
                     }
-                    let b = &track.bbox;
-                    let bearing = (b.center_x() - u) / p.bearing_sigma_px;
-                    let cut = b.top <= 1.0 || b.bottom >= f64::from(k.height) - 1.0;
-                    let size = if cut {
-                        0.0
-                    } else {
-                        (b.height() / h).ln() / p.log_size_sigma
-                    };
-                    p.gate - (bearing * bearing + size * size).sqrt()
+                    self.params.gate - self.distance(track, pred, image_height)
                 },
                 f64::MIN_POSITIVE,
             );
@@ -172,6 +211,8 @@ mod tests {
             tower_type: TowerType::A,
             foot_in_world: Point3::new(x, y, 0.0),
             height_m: 30.0,
+            sigma_horizontal_m: 0.0,
+            sigma_vertical_m: 0.0,
         };
         let datum = towernav_geometry::Datum::new(towernav_geometry::Geodetic {
             lat_deg: 30.5,
@@ -203,6 +244,7 @@ mod tests {
             track_id: id,
             bbox: PixelBox::new(foot.x - 5.0, top.y, foot.x + 5.0, foot.y),
             tower_type: TowerType::A,
+            score: 0.9,
         }
     }
 
@@ -225,7 +267,9 @@ mod tests {
             ..truth
         };
         let mut identity = Identity::new(IdentityParams::default());
-        let bound = identity.update(&tracks, &[7, 8, 9], &guess, &camera, &map, || vec![0, 1, 2]);
+        let bound = identity.update(&tracks, &[7, 8, 9], &guess, false, &camera, &map, || {
+            vec![0, 1, 2]
+        });
         assert_eq!(bound, [Some(1), Some(0), Some(2)]);
     }
 
@@ -241,11 +285,38 @@ mod tests {
         let mut identity = Identity::new(IdentityParams::default());
         identity.pin(7, Some(2));
         assert_eq!(
-            identity.update(&tracks, &[7], &pose, &camera, &map, || vec![0, 1, 2]),
+            identity.update(&tracks, &[7], &pose, false, &camera, &map, || vec![0, 1, 2]),
             [Some(2)]
         );
         assert!(identity.is_pinned(7));
-        identity.update(&[], &[], &pose, &camera, &map, || vec![0, 1, 2]);
+        identity.update(&[], &[], &pose, false, &camera, &map, || vec![0, 1, 2]);
         assert!(!identity.is_pinned(7));
+    }
+
+    #[test]
+    fn a_wrong_binding_is_released_once_a_trusted_pose_disagrees() {
+        let camera = PinholeCamera::default_hd();
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: Attitude::level(0.0),
+        };
+        let map = map();
+        // The track sees tower 0, but was bound to tower 1 while the pose was unknown.
+        let tracks = [observe(&pose, &camera, &map, 0, 7)];
+        let mut identity = Identity::new(IdentityParams::default());
+        identity.bindings.insert(7, 1);
+        for _ in 1..IdentityParams::default().release_after {
+            let b = identity.update(&tracks, &[7], &pose, true, &camera, &map, || vec![0, 1, 2]);
+            assert_eq!(b, [Some(1)], "hysteresis: one bad frame is not enough");
+        }
+        // Released on the tenth frame, and rebound to the right tower in the same call.
+        let b = identity.update(&tracks, &[7], &pose, true, &camera, &map, || vec![0, 1, 2]);
+        assert_eq!(b, [Some(0)]);
+        // An untrusted guess never releases.
+        identity.bindings.insert(7, 1);
+        for _ in 0..30 {
+            identity.update(&tracks, &[7], &pose, false, &camera, &map, || vec![0, 1, 2]);
+        }
+        assert_eq!(identity.bindings.get(&7), Some(&1));
     }
 }

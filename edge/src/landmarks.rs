@@ -14,7 +14,13 @@ pub struct MapTower {
     pub tower_type: TowerType,
     pub foot_in_world: Point3<f64>,
     pub height_m: f64,
+    /// One-sigma survey accuracy of the foot's position, horizontal and vertical (metres).
+    pub sigma_horizontal_m: f64,
+    pub sigma_vertical_m: f64,
 }
+
+/// Survey accuracy assumed when a record states none: a careful GNSS survey.
+pub const DEFAULT_SURVEY_SIGMA_M: f64 = 0.5;
 
 impl MapTower {
     pub fn top_in_world(&self) -> Point3<f64> {
@@ -71,6 +77,8 @@ impl LandmarkMap {
                     height_m: r.ground_elev_m,
                 }),
                 height_m: r.height_m,
+                sigma_horizontal_m: r.sigma_horizontal_m.unwrap_or(DEFAULT_SURVEY_SIGMA_M),
+                sigma_vertical_m: r.sigma_vertical_m.unwrap_or(DEFAULT_SURVEY_SIGMA_M),
             })
             .collect();
         Self::new(towers, *datum)
@@ -107,6 +115,8 @@ mod tests {
             tower_type: TowerType::A,
             foot_in_world: Point3::new(x, 0.0, 0.0),
             height_m: 30.0,
+            sigma_horizontal_m: 0.0,
+            sigma_vertical_m: 0.0,
         };
         let map = LandmarkMap::new(
             vec![

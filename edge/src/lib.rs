@@ -1,12 +1,14 @@
 //! The onboard pipeline.
 //!
-//! The core (`tracker`, `identity`, `localizer`, `landmarks`, `pipeline`,
+//! The core (`tracker`, `identity`, `localizer`, `filter`, `landmarks`, `pipeline`,
 //! `sim_eval`, `wire`) is pure and deterministic: time comes in with each frame,
 //! and it imports no tokio, zenoh or ort. `shell` drives it over Zenoh.
 
 pub mod assignment;
+pub mod filter;
 pub mod identity;
 pub mod landmarks;
+pub mod loc_eval;
 pub mod localizer;
 pub mod pipeline;
 pub mod replica;

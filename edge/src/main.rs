@@ -30,6 +30,14 @@ enum Command {
     Run(RunArgs),
     /// Run the flight with a listener on loopback and print the accuracy report.
     Demo(RunArgs),
+    /// Reproduce the seed's localization analysis (seed vs ours, tables and PNG plots).
+    EvalLocalization {
+        /// Folder for the plots.
+        #[arg(long, default_value = "target/loc-eval")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
 }
 
 #[derive(Args)]
@@ -67,6 +75,9 @@ fn main() -> anyhow::Result<()> {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    if let Command::EvalLocalization { out, seed } = &cli.command {
+        return towernav_edge::shell::loc_eval_cmd::write_all(out, *seed);
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -76,6 +87,7 @@ fn main() -> anyhow::Result<()> {
         match cli.command {
             Command::Run(args) => run(args, false).await,
             Command::Demo(args) => run(args, true).await,
+            Command::EvalLocalization { .. } => Ok(()),
         }
     })
 }

@@ -1,12 +1,13 @@
 //! One frame in, one pose and a set of bound tracks out: tracker -> identity -> localizer.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Point3;
 use towernav_geometry::{PinholeCamera, PixelBox, Pose};
 use towernav_protocol::{DetectionFrame, TowerType};
 
+use crate::filter::{Estimate, FilterParams, FixVerdict, PoseFilter};
 use crate::identity::{Identity, IdentityParams};
 use crate::landmarks::LandmarkMap;
-use crate::localizer::{Fix, LocalizerParams, Observation, seed_lbl};
+use crate::localizer::{Fix, LocalizerParams, Method, Observation, robust_lbl, seed_lbl};
 use crate::tracker::{SortParams, SortTracker};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -17,6 +18,12 @@ pub struct PipelineConfig {
     pub sort: SortParams,
     pub identity: IdentityParams,
     pub localizer: LocalizerParams,
+    /// The per-frame estimator: ours by default, the seed's as a baseline.
+    pub method: Method,
+    /// The EKF over fixes; `None` publishes raw per-frame fixes.
+    pub filter: Option<FilterParams>,
+    /// Also run the seed's method on the same observations, for side-by-side scoring.
+    pub compare_seed: bool,
     /// Only towers within this distance of the pose guess are candidates for a new track.
     pub landmark_radius_m: f64,
 }
@@ -29,6 +36,9 @@ impl PipelineConfig {
             sort: SortParams::default(),
             identity: IdentityParams::default(),
             localizer: LocalizerParams::default(),
+            method: Method::default(),
+            filter: Some(FilterParams::default()),
+            compare_seed: false,
             landmark_radius_m: 1500.0,
         }
     }
@@ -44,11 +54,26 @@ pub struct BoundTrack {
     pub pinned: bool,
 }
 
+/// A bound box as the localizer gets it; `process_tampered` may alter these.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundBox {
+    pub bbox: PixelBox,
+    /// Index into the landmark map.
+    pub tower: usize,
+    pub score: f64,
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameOutput {
     pub seq: u64,
     pub time_s: f64,
+    /// This frame's own fix, by the configured method.
     pub fix: Option<Fix>,
+    /// What is published: the filter's estimate, or the raw fix with no filter.
+    pub estimate: Option<Estimate>,
+    pub verdict: FixVerdict,
+    /// The seed's fix on the same observations, when `compare_seed` is set.
+    pub seed_fix: Option<Fix>,
     pub tracks: Vec<BoundTrack>,
 }
 
@@ -57,9 +82,10 @@ pub struct Pipeline {
     map: LandmarkMap,
     tracker: SortTracker,
     identity: Identity,
-    /// Last fix and the velocity between the last two, for the next frame's pose guess.
-    last_fix: Option<(f64, Point3<f64>)>,
-    velocity: Vector3<f64>,
+    filter: Option<PoseFilter>,
+    /// The newest position estimate: the pose guess when the filter has none
+    /// (no filter, or lost after an outage). Better than the take-off point.
+    last_known: Option<Point3<f64>>,
 }
 
 impl Pipeline {
@@ -67,15 +93,19 @@ impl Pipeline {
         Self {
             tracker: SortTracker::new(config.sort),
             identity: Identity::new(config.identity),
+            filter: config.filter.map(PoseFilter::new),
             config,
             map,
-            last_fix: None,
-            velocity: Vector3::zeros(),
+            last_known: None,
         }
     }
 
     pub fn map(&self) -> &LandmarkMap {
         &self.map
+    }
+
+    pub fn config(&self) -> &PipelineConfig {
+        &self.config
     }
 
     /// Swaps in a new landmark map (the replica changed); bindings follow their towers by id.
@@ -102,25 +132,40 @@ impl Pipeline {
         Ok(())
     }
 
-    fn pose_guess(&self, frame: &DetectionFrame) -> Pose {
-        let position_in_world = match self.last_fix {
-            Some((t, p)) => p + self.velocity * (frame.time_s - t).clamp(0.0, 5.0),
-            None => self.config.takeoff_in_world,
-        };
-        Pose {
-            position_in_world,
-            attitude: frame.imu_attitude,
-        }
+    fn predicted_position(&self, time_s: f64) -> Option<Point3<f64>> {
+        self.filter
+            .as_ref()
+            .and_then(|f| f.predicted_position(time_s))
+            .or(self.last_known)
     }
 
     pub fn process(&mut self, frame: &DetectionFrame) -> FrameOutput {
+        self.process_tampered(frame, |_| {})
+    }
+
+    /// `process`, with a hook between identity and localization that may alter
+    /// the bound boxes: evaluations use it to inject wrong towers and false boxes.
+    pub fn process_tampered(
+        &mut self,
+        frame: &DetectionFrame,
+        tamper: impl FnOnce(&mut Vec<BoundBox>),
+    ) -> FrameOutput {
         let tracks = self.tracker.update(frame.time_s, &frame.detections);
         let live: Vec<u64> = self.tracker.live_ids().collect();
-        let guess = self.pose_guess(frame);
+        let predicted = self.predicted_position(frame.time_s);
+        let guess = Pose {
+            position_in_world: predicted.unwrap_or(self.config.takeoff_in_world),
+            attitude: frame.imu_attitude,
+        };
+        let trusted = self
+            .filter
+            .as_ref()
+            .is_some_and(|f| f.tracking(frame.time_s, 0.5));
         let bindings = self.identity.update(
             &tracks,
             &live,
             &guess,
+            trusted,
             &self.config.camera,
             &self.map,
             || {
@@ -129,31 +174,79 @@ impl Pipeline {
             },
         );
 
-        let observations: Vec<Observation<'_>> = tracks
+        let mut bound: Vec<BoundBox> = tracks
             .iter()
             .zip(&bindings)
             .filter_map(|(t, b)| {
-                b.map(|i| Observation {
-                    tower: &self.map.towers[i],
+                b.map(|tower| BoundBox {
                     bbox: t.bbox,
+                    tower,
+                    score: t.score,
                 })
             })
             .collect();
-        let fix = seed_lbl(
-            &observations,
-            &self.config.camera.intrinsics,
-            frame.imu_attitude.yaw,
-            &self.config.localizer,
-        );
-        if let Some(fix) = &fix {
-            if let Some((t, p)) = self.last_fix {
-                let dt = frame.time_s - t;
-                if dt > 1e-6 {
-                    // Low-passed: single fixes are noisy, the guess only needs to be near.
-                    self.velocity = self.velocity * 0.9 + (fix.position_in_world - p) / dt * 0.1;
-                }
-            }
-            self.last_fix = Some((frame.time_s, fix.position_in_world));
+        tamper(&mut bound);
+        let observations: Vec<Observation<'_>> = bound
+            .iter()
+            .filter_map(|b| {
+                Some(Observation {
+                    tower: self.map.towers.get(b.tower)?,
+                    bbox: b.bbox,
+                    score: b.score,
+                })
+            })
+            .collect();
+        let params = &self.config.localizer;
+        let seed = || {
+            seed_lbl(
+                &observations,
+                &self.config.camera.intrinsics,
+                frame.imu_attitude.yaw,
+                params,
+            )
+        };
+        let fix = match self.config.method {
+            Method::Seed => seed(),
+            Method::Rays => robust_lbl(
+                &observations,
+                &self.config.camera,
+                &frame.imu_attitude,
+                predicted,
+                params,
+            )
+            .map(|r| r.fix),
+        };
+        let seed_fix = if self.config.compare_seed {
+            seed()
+        } else {
+            None
+        };
+        let imu_yaw_var = params.yaw_sigma * params.yaw_sigma;
+        let (estimate, verdict) = match &mut self.filter {
+            Some(filter) => filter.step(
+                frame.time_s,
+                fix.as_ref(),
+                frame.imu_attitude.yaw,
+                imu_yaw_var,
+            ),
+            None => (
+                fix.as_ref().map(|f| Estimate {
+                    position_in_world: f.position_in_world,
+                    velocity_in_world: nalgebra::Vector3::zeros(),
+                    yaw: f.yaw,
+                    covariance: f.covariance,
+                    updated: true,
+                    coast_s: 0.0,
+                }),
+                if fix.is_some() {
+                    FixVerdict::Accepted
+                } else {
+                    FixVerdict::NoFix
+                },
+            ),
+        };
+        if let Some(e) = &estimate {
+            self.last_known = Some(e.position_in_world);
         }
         let tracks = tracks
             .into_iter()
@@ -170,6 +263,9 @@ impl Pipeline {
             seq: frame.seq,
             time_s: frame.time_s,
             fix,
+            estimate,
+            verdict,
+            seed_fix,
             tracks,
         }
     }

@@ -3,18 +3,35 @@
 use towernav_geometry::{Datum, Geodetic};
 use towernav_protocol::{NodeId, PoseEstimate, PoseMethod, Track, TrackReport};
 
+use crate::filter::Estimate;
 use crate::landmarks::LandmarkMap;
-use crate::localizer::Fix;
+use crate::localizer::Method;
 use crate::pipeline::FrameOutput;
 
-pub fn pose_estimate(uav: &NodeId, out: &FrameOutput, fix: &Fix, datum: &Datum) -> PoseEstimate {
-    let p = fix.position_in_world;
+/// How a published pose was made, for the wire.
+pub fn pose_method(method: Method, filtered: bool) -> PoseMethod {
+    match (method, filtered) {
+        (Method::Seed, false) => PoseMethod::SeedLbl,
+        (Method::Seed, true) => PoseMethod::SeedEkf,
+        (Method::Rays, false) => PoseMethod::RaysLbl,
+        (Method::Rays, true) => PoseMethod::RaysEkf,
+    }
+}
+
+pub fn pose_estimate(
+    uav: &NodeId,
+    out: &FrameOutput,
+    estimate: &Estimate,
+    method: PoseMethod,
+    datum: &Datum,
+) -> PoseEstimate {
+    let p = estimate.position_in_world;
     let Geodetic {
         lat_deg,
         lon_deg,
         height_m,
     } = datum.to_geodetic(&p);
-    let c = &fix.covariance;
+    let c = &estimate.covariance;
     PoseEstimate {
         uav: uav.clone(),
         time_s: out.time_s,
@@ -25,10 +42,15 @@ pub fn pose_estimate(uav: &NodeId, out: &FrameOutput, fix: &Fix, datum: &Datum) 
         lat_deg,
         lon_deg,
         alt_m: height_m,
-        yaw_rad: fix.yaw,
+        yaw_rad: estimate.yaw,
         covariance: std::array::from_fn(|r| std::array::from_fn(|col| c[(r, col)])),
-        method: PoseMethod::SeedLbl,
-        towers_used: fix.towers_used.clone(),
+        method,
+        towers_used: out
+            .fix
+            .as_ref()
+            .filter(|_| estimate.updated)
+            .map(|f| f.towers_used.clone())
+            .unwrap_or_default(),
     }
 }
 

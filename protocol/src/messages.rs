@@ -54,6 +54,12 @@ impl std::fmt::Display for TowerType {
 pub enum PoseMethod {
     /// The seed's localization by landmarks: level camera, mean over towers.
     SeedLbl,
+    /// Ours, one frame: attitude-compensated rays, robust least squares over towers.
+    RaysLbl,
+    /// Ours fused over time by the EKF.
+    RaysEkf,
+    /// The seed's fixes fused over time by the EKF.
+    SeedEkf,
 }
 
 /// One pose estimate of one UAV for one frame.

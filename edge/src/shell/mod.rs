@@ -4,6 +4,8 @@ pub mod collector;
 pub mod error;
 pub mod landmark_sync;
 pub mod landmarks_source;
+pub mod loc_eval_cmd;
+pub mod loc_plots;
 pub mod node;
 pub mod sim_flight;
 

@@ -10,9 +10,10 @@ use super::ShellError;
 use super::landmark_sync::LandmarkSync;
 use super::node::EdgeNode;
 use crate::landmarks::LandmarkMap;
+use crate::localizer::Method;
 use crate::pipeline::{Pipeline, PipelineConfig};
 use crate::sim_eval::all_bound_right;
-use crate::wire::{pose_estimate, track_report};
+use crate::wire::{pose_estimate, pose_method, track_report};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimFlightOptions {
@@ -22,6 +23,9 @@ pub struct SimFlightOptions {
     pub takeoff_error_m: (f64, f64),
     /// Stop after this many frames (the whole flight if `None`).
     pub max_frames: Option<u64>,
+    pub method: Method,
+    /// Fuse fixes with the EKF (else publish raw fixes).
+    pub filter: bool,
 }
 
 impl Default for SimFlightOptions {
@@ -30,6 +34,8 @@ impl Default for SimFlightOptions {
             speed: None,
             takeoff_error_m: (3.0, -4.0),
             max_frames: None,
+            method: Method::default(),
+            filter: true,
         }
     }
 }
@@ -58,7 +64,13 @@ pub async fn fly(
 ) -> Result<FlightRecord, ShellError> {
     let start = scenario.start_in_world();
     let takeoff = start + Vector3::new(options.takeoff_error_m.0, options.takeoff_error_m.1, 0.0);
-    let mut pipeline = Pipeline::new(PipelineConfig::new(scenario.camera, takeoff), map);
+    let mut config = PipelineConfig::new(scenario.camera, takeoff);
+    config.method = options.method;
+    if !options.filter {
+        config.filter = None;
+    }
+    let method = pose_method(options.method, options.filter);
+    let mut pipeline = Pipeline::new(config, map);
     let datum = scenario.world.datum;
     let mut record = FlightRecord::default();
     let wall = Instant::now();
@@ -102,8 +114,8 @@ pub async fn fly(
         let out = pipeline.process(&frame);
         record.core_seconds += t0.elapsed().as_secs_f64();
 
-        if let Some(fix) = &out.fix {
-            node.publish_pose(&pose_estimate(node.uav(), &out, fix, &datum))
+        if let Some(estimate) = &out.estimate {
+            node.publish_pose(&pose_estimate(node.uav(), &out, estimate, method, &datum))
                 .await?;
             record.poses_published += 1;
         }
@@ -122,7 +134,7 @@ pub async fn fly(
             node.publish_status(&StatusHeartbeat {
                 uav: node.uav().clone(),
                 time_s: frame.time_s,
-                state: match (&out.fix, record.poses_published) {
+                state: match (&out.estimate, record.poses_published) {
                     (Some(_), _) => EdgeState::Localized,
                     (None, 0) => EdgeState::Initializing,
                     (None, _) => EdgeState::NoFix,

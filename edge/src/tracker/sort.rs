@@ -47,6 +47,8 @@ pub struct TrackOutput {
     /// The detection's box: what the camera measured this frame.
     pub bbox: PixelBox,
     pub tower_type: TowerType,
+    /// The detector's confidence in that box.
+    pub score: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -108,6 +110,7 @@ impl SortTracker {
                     track_id: track.id,
                     bbox: d.bbox,
                     tower_type: d.tower_type,
+                    score: d.score,
                 });
             }
         }

@@ -5,54 +5,9 @@
 //! Several towers: the plain mean. The camera is taken as level.
 
 use nalgebra::{Matrix2, Matrix4, Point3, Vector2};
-use towernav_geometry::{Intrinsics, PixelBox};
+use towernav_geometry::Intrinsics;
 
-use crate::landmarks::MapTower;
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LocalizerParams {
-    /// Assumed spread of one box edge, pixels; sets the reported covariance.
-    pub edge_sigma_px: f64,
-    /// Boxes shorter than this give no fix (the seed trusted only large boxes).
-    pub min_box_height_px: f64,
-    /// Spread of the IMU heading, radians.
-    pub yaw_sigma: f64,
-}
-
-impl Default for LocalizerParams {
-    fn default() -> Self {
-        Self {
-            edge_sigma_px: 1.5,
-            min_box_height_px: 20.0,
-            yaw_sigma: 0.5f64.to_radians(),
-        }
-    }
-}
-
-/// One bound, measured tower.
-#[derive(Debug, Clone, Copy)]
-pub struct Observation<'a> {
-    pub tower: &'a MapTower,
-    pub bbox: PixelBox,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub struct Fix {
-    pub position_in_world: Point3<f64>,
-    pub yaw: f64,
-    /// (east, north, up, yaw).
-    pub covariance: Matrix4<f64>,
-    pub towers_used: Vec<String>,
-}
-
-/// Whether the image edge cuts the box, which makes its height a lie.
-pub fn touches_edge(b: &PixelBox, k: &Intrinsics) -> bool {
-    const MARGIN: f64 = 1.0;
-    b.left <= MARGIN
-        || b.top <= MARGIN
-        || b.right >= f64::from(k.width) - MARGIN
-        || b.bottom >= f64::from(k.height) - MARGIN
-}
+use super::{Fix, LocalizerParams, Observation, touches_edge};
 
 pub fn seed_lbl(
     observations: &[Observation<'_>],
@@ -63,13 +18,14 @@ pub fn seed_lbl(
     let forward = Vector2::new(yaw.cos(), yaw.sin());
     let right = Vector2::new(yaw.sin(), -yaw.cos());
     let sigma_h = std::f64::consts::SQRT_2 * params.edge_sigma_px;
+    let min_h = params.seed_min_box_height_px;
     let mut sum = Point3::origin().coords;
     let mut cov_sum = Matrix4::zeros();
     let mut used = Vec::new();
     for o in observations {
         let b = &o.bbox;
         let h = b.height();
-        if h < params.min_box_height_px || touches_edge(b, k) {
+        if h < min_h || touches_edge(b, k) {
             continue;
         }
         let big_h = o.tower.height_m;
@@ -114,7 +70,9 @@ pub fn seed_lbl(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::landmarks::MapTower;
     use proptest::prelude::*;
+    use towernav_geometry::PixelBox;
     use towernav_geometry::{Attitude, PinholeCamera, Pose};
     use towernav_protocol::TowerType;
 
@@ -124,6 +82,8 @@ mod tests {
             tower_type: TowerType::B,
             foot_in_world: Point3::new(x, y, 0.0),
             height_m: h,
+            sigma_horizontal_m: 0.0,
+            sigma_vertical_m: 0.0,
         }
     }
 
@@ -146,7 +106,7 @@ mod tests {
             let a = ahead(150.0, 40.0);
             let b = ahead(220.0, -60.0);
             let towers = [tower("B1", a.x, a.y, 38.0), tower("B2", b.x, b.y, 45.0)];
-            let obs: Vec<_> = towers.iter().map(|t| Observation { tower: t, bbox: label(&camera, &pose, t) }).collect();
+            let obs: Vec<_> = towers.iter().map(|t| Observation { tower: t, bbox: label(&camera, &pose, t), score: 0.9 }).collect();
             let fix = seed_lbl(&obs, &camera.intrinsics, yaw, &LocalizerParams::default()).expect("fix");
             prop_assert!((fix.position_in_world - pose.position_in_world).norm() < 1e-6);
             prop_assert_eq!(fix.towers_used.len(), 2);
@@ -161,10 +121,12 @@ mod tests {
         let tiny = Observation {
             tower: &t,
             bbox: PixelBox::new(600.0, 300.0, 604.0, 310.0),
+            score: 0.9,
         };
         let cut = Observation {
             tower: &t,
             bbox: PixelBox::new(600.0, 100.0, 640.0, 720.0),
+            score: 0.9,
         };
         assert!(seed_lbl(&[tiny, cut], &k, 0.0, &LocalizerParams::default()).is_none());
     }
@@ -181,6 +143,7 @@ mod tests {
             let obs = [Observation {
                 tower: &t,
                 bbox: label(&camera, &pose, &t),
+                score: 0.9,
             }];
             seed_lbl(&obs, &camera.intrinsics, 0.0, &LocalizerParams::default())
                 .expect("fix")

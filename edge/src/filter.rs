@@ -1,0 +1,413 @@
+//! An EKF over position and velocity (constant-velocity model driven by white
+//! acceleration) that fuses per-frame fixes, gates them by their innovation,
+//! coasts through frames with no tower, and says when it has lost the pose.
+//!
+//! After an outage: `report_coast_s` (5 s) after the last accepted fix the
+//! filter stops reporting; its prediction still guides tower identity until
+//! `max_coast_s` (20 s), when it is lost and the next good fix restarts it. A run of
+//! `restart_after_rejections` rejected fixes also restarts it from the newest
+//! fix: a filter that rejects everything has itself gone wrong. A restart needs
+//! a fix from two or more towers, and after a loss one within reach of the
+//! last estimate at `max_speed_mps`.
+
+use nalgebra::{Matrix3, Matrix4, Matrix6, Point3, SMatrix, Vector3, Vector6};
+
+use crate::localizer::Fix;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterParams {
+    /// White acceleration noise, m/s^2 per axis horizontally and vertically.
+    pub accel_sigma_h: f64,
+    pub accel_sigma_v: f64,
+    /// Chi-square gate on the 3-D innovation (99.9 %).
+    pub gate_chi2: f64,
+    pub max_coast_s: f64,
+    /// Estimates are reported only this long after the last accepted fix; the
+    /// prediction lives on (for identity) until `max_coast_s`.
+    pub report_coast_s: f64,
+    /// Velocity correlation time: with no fixes the predicted velocity decays
+    /// toward zero with this time constant, so a long gap (a turn) does not fly
+    /// the prediction off along the old track.
+    pub velocity_tau_s: f64,
+    pub restart_after_rejections: u32,
+    /// Velocity spread at start, m/s.
+    pub initial_velocity_sigma: f64,
+    /// A (re)start needs a fix from at least this many towers: one tower's
+    /// fix cannot reveal its own wrong identity or false box.
+    pub min_restart_towers: usize,
+    /// After losing the pose, a restart fix must lie within this speed times
+    /// the time since the last estimate (plus `restart_slack_m`) of it.
+    pub max_speed_mps: f64,
+    pub restart_slack_m: f64,
+}
+
+impl Default for FilterParams {
+    fn default() -> Self {
+        Self {
+            accel_sigma_h: 1.5,
+            accel_sigma_v: 0.5,
+            gate_chi2: 16.27,
+            max_coast_s: 20.0,
+            report_coast_s: 5.0,
+            velocity_tau_s: 8.0,
+            restart_after_rejections: 15,
+            initial_velocity_sigma: 15.0,
+            min_restart_towers: 2,
+            max_speed_mps: 20.0,
+            restart_slack_m: 30.0,
+        }
+    }
+}
+
+/// What the filter says about one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Estimate {
+    pub position_in_world: Point3<f64>,
+    pub velocity_in_world: Vector3<f64>,
+    pub yaw: f64,
+    /// (east, north, up, yaw).
+    pub covariance: Matrix4<f64>,
+    /// The fix of this frame was fused (false: predicted only, or the fix was gated).
+    pub updated: bool,
+    /// Seconds since the last accepted fix.
+    pub coast_s: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FixVerdict {
+    Accepted,
+    Rejected,
+    /// The filter (re)started from this fix.
+    Restarted,
+    NoFix,
+}
+
+#[derive(Debug, Clone)]
+pub struct PoseFilter {
+    params: FilterParams,
+    state: Option<State>,
+    rejections: u32,
+    /// Time and position of the last estimate before the pose was lost.
+    last_known: Option<(f64, Point3<f64>)>,
+}
+
+#[derive(Debug, Clone)]
+struct State {
+    time_s: f64,
+    x: Vector6<f64>,
+    p: Matrix6<f64>,
+    last_update_s: f64,
+}
+
+impl PoseFilter {
+    pub fn new(params: FilterParams) -> Self {
+        Self {
+            params,
+            state: None,
+            rejections: 0,
+            last_known: None,
+        }
+    }
+
+    /// Whether `fix` may (re)start the filter at `time_s`.
+    fn may_start_from(&self, time_s: f64, fix: &Fix) -> bool {
+        if fix.towers_used.len() < self.params.min_restart_towers {
+            return false;
+        }
+        match self.last_known {
+            Some((t, p)) => {
+                let reach =
+                    self.params.max_speed_mps * (time_s - t).abs() + self.params.restart_slack_m;
+                (fix.position_in_world - p).norm() <= reach
+            }
+            None => true,
+        }
+    }
+
+    /// Where the filter expects the UAV at `time_s` (no state change).
+    pub fn predicted_position(&self, time_s: f64) -> Option<Point3<f64>> {
+        let s = self.state.as_ref()?;
+        let dt = (time_s - s.time_s).max(0.0);
+        if time_s - s.last_update_s > self.params.max_coast_s {
+            return None;
+        }
+        let (reach, _) = velocity_decay(dt, self.params.velocity_tau_s);
+        Some(Point3::from(
+            s.x.fixed_rows::<3>(0) + s.x.fixed_rows::<3>(3) * reach,
+        ))
+    }
+
+    /// Whether a fix was accepted within the last `within_s` seconds: the
+    /// prediction is good enough to judge tower identities by.
+    pub fn tracking(&self, time_s: f64, within_s: f64) -> bool {
+        self.state
+            .as_ref()
+            .is_some_and(|s| time_s - s.last_update_s <= within_s)
+    }
+
+    /// Advance to `time_s`, fuse `fix` if it passes the gate, and report.
+    /// `yaw` and `yaw_variance` come from the fix when there is one, else the IMU.
+    pub fn step(
+        &mut self,
+        time_s: f64,
+        fix: Option<&Fix>,
+        imu_yaw: f64,
+        imu_yaw_variance: f64,
+    ) -> (Option<Estimate>, FixVerdict) {
+        if let Some(s) = &self.state
+            && (time_s - s.last_update_s > self.params.max_coast_s || time_s < s.time_s)
+        {
+            // Lost, or time ran backwards (a new flight): start over.
+            let backwards = time_s < s.time_s;
+            self.last_known = (!backwards).then(|| {
+                (
+                    s.last_update_s,
+                    Point3::from(s.x.fixed_rows::<3>(0).into_owned()),
+                )
+            });
+            self.state = None;
+        }
+        let verdict = match (fix, self.state.is_some()) {
+            (None, _) => {
+                self.predict(time_s);
+                FixVerdict::NoFix
+            }
+            (Some(f), false) => {
+                if self.may_start_from(time_s, f) {
+                    self.start(time_s, f);
+                    FixVerdict::Restarted
+                } else {
+                    FixVerdict::Rejected
+                }
+            }
+            (Some(f), true) => {
+                self.predict(time_s);
+                if self.update(f) {
+                    self.rejections = 0;
+                    FixVerdict::Accepted
+                } else {
+                    self.rejections += 1;
+                    if self.rejections >= self.params.restart_after_rejections
+                        && f.towers_used.len() >= self.params.min_restart_towers
+                    {
+                        self.start(time_s, f);
+                        FixVerdict::Restarted
+                    } else {
+                        FixVerdict::Rejected
+                    }
+                }
+            }
+        };
+        let Some(s) = &self.state else {
+            return (None, verdict);
+        };
+        if time_s - s.last_update_s > self.params.report_coast_s {
+            return (None, verdict);
+        }
+        let mut covariance = Matrix4::zeros();
+        covariance
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&s.p.fixed_view::<3, 3>(0, 0));
+        let (yaw, yaw_var) = match fix {
+            Some(f) if verdict != FixVerdict::Rejected => (f.yaw, f.covariance[(3, 3)]),
+            _ => (imu_yaw, imu_yaw_variance),
+        };
+        covariance[(3, 3)] = yaw_var;
+        let estimate = Estimate {
+            position_in_world: Point3::from(s.x.fixed_rows::<3>(0).into_owned()),
+            velocity_in_world: s.x.fixed_rows::<3>(3).into_owned(),
+            yaw,
+            covariance,
+            updated: matches!(verdict, FixVerdict::Accepted | FixVerdict::Restarted),
+            coast_s: time_s - s.last_update_s,
+        };
+        (Some(estimate), verdict)
+    }
+
+    fn start(&mut self, time_s: f64, fix: &Fix) {
+        self.last_known = None;
+        let mut x = Vector6::zeros();
+        x.fixed_rows_mut::<3>(0)
+            .copy_from(&fix.position_in_world.coords);
+        let mut p = Matrix6::zeros();
+        p.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&fix.covariance.fixed_view::<3, 3>(0, 0));
+        let v2 = self.params.initial_velocity_sigma.powi(2);
+        for i in 3..6 {
+            p[(i, i)] = v2;
+        }
+        self.state = Some(State {
+            time_s,
+            x,
+            p,
+            last_update_s: time_s,
+        });
+        self.rejections = 0;
+    }
+
+    fn predict(&mut self, time_s: f64) {
+        let params = self.params;
+        let Some(s) = &mut self.state else { return };
+        let dt = (time_s - s.time_s).max(0.0);
+        if dt == 0.0 {
+            return;
+        }
+        let (reach, keep) = velocity_decay(dt, params.velocity_tau_s);
+        let mut f = Matrix6::identity();
+        for i in 0..3 {
+            f[(i, i + 3)] = reach;
+            f[(i + 3, i + 3)] = keep;
+        }
+        let mut q = Matrix6::zeros();
+        for i in 0..3 {
+            let a2 = if i < 2 {
+                params.accel_sigma_h.powi(2)
+            } else {
+                params.accel_sigma_v.powi(2)
+            };
+            q[(i, i)] = a2 * dt.powi(3) / 3.0;
+            q[(i, i + 3)] = a2 * dt.powi(2) / 2.0;
+            q[(i + 3, i)] = a2 * dt.powi(2) / 2.0;
+            q[(i + 3, i + 3)] = a2 * dt;
+        }
+        s.x = f * s.x;
+        s.p = f * s.p * f.transpose() + q;
+        s.time_s = time_s;
+    }
+
+    /// Fuse a fix's position; `false` if its innovation fails the gate.
+    fn update(&mut self, fix: &Fix) -> bool {
+        let gate = self.params.gate_chi2;
+        let Some(s) = &mut self.state else {
+            return false;
+        };
+        let mut h = SMatrix::<f64, 3, 6>::zeros();
+        for i in 0..3 {
+            h[(i, i)] = 1.0;
+        }
+        let r: Matrix3<f64> = fix.covariance.fixed_view::<3, 3>(0, 0).into_owned();
+        let innovation = fix.position_in_world.coords - s.x.fixed_rows::<3>(0);
+        let cov = h * s.p * h.transpose() + r;
+        let Some(cov_inv) = cov.try_inverse() else {
+            return false;
+        };
+        let nis = (innovation.transpose() * cov_inv * innovation)[(0, 0)];
+        if !nis.is_finite() || nis > gate {
+            return false;
+        }
+        let gain = s.p * h.transpose() * cov_inv;
+        s.x += gain * innovation;
+        // Joseph form keeps P symmetric and positive.
+        let i_kh = Matrix6::identity() - gain * h;
+        s.p = i_kh * s.p * i_kh.transpose() + gain * r * gain.transpose();
+        s.last_update_s = s.time_s;
+        true
+    }
+}
+
+/// Over `dt` with velocity correlation time `tau`: how far a unit velocity
+/// carries the position, and how much of the velocity remains.
+fn velocity_decay(dt: f64, tau: f64) -> (f64, f64) {
+    if tau <= 0.0 || !tau.is_finite() {
+        return (dt, 1.0);
+    }
+    let keep = (-dt / tau).exp();
+    (tau * (1.0 - keep), keep)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fix_at(x: f64, y: f64, sigma: f64) -> Fix {
+        let mut covariance = Matrix4::identity() * sigma * sigma;
+        covariance[(3, 3)] = 1e-4;
+        Fix {
+            position_in_world: Point3::new(x, y, 30.0),
+            yaw: 0.0,
+            covariance,
+            towers_used: vec!["A1".into(), "B1".into()],
+        }
+    }
+
+    #[test]
+    fn coasts_through_gaps_and_reports_growing_uncertainty() {
+        let mut f = PoseFilter::new(FilterParams::default());
+        for i in 0..60 {
+            let t = f64::from(i) / 30.0;
+            f.step(t, Some(&fix_at(10.0 * t, 0.0, 1.0)), 0.0, 1e-4);
+        }
+        let (before, _) = f.step(2.0, Some(&fix_at(20.0, 0.0, 1.0)), 0.0, 1e-4);
+        let before = before.expect("tracking");
+        let (gap, verdict) = f.step(3.0, None, 0.0, 1e-4);
+        let (silent, _) = f.step(8.5, None, 0.0, 1e-4);
+        assert!(
+            silent.is_none(),
+            "nothing reported 6.5 s after the last fix"
+        );
+        assert!(
+            f.predicted_position(8.5).is_some(),
+            "the prediction still guides identity"
+        );
+        let gap = gap.expect("coasting");
+        assert_eq!(verdict, FixVerdict::NoFix);
+        // Carried at 10 m/s, slowing with the velocity's 8 s correlation time.
+        assert!(
+            (gap.position_in_world.x - 29.4).abs() < 1.0,
+            "{}",
+            gap.position_in_world
+        );
+        assert!(gap.covariance[(0, 0)] > before.covariance[(0, 0)]);
+        assert!(!gap.updated && (gap.coast_s - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn an_inconsistent_fix_is_gated_and_a_long_outage_loses_the_pose() {
+        let mut f = PoseFilter::new(FilterParams::default());
+        for i in 0..30 {
+            f.step(f64::from(i) / 30.0, Some(&fix_at(0.0, 0.0, 1.0)), 0.0, 1e-4);
+        }
+        let (_, verdict) = f.step(1.0, Some(&fix_at(80.0, 0.0, 1.0)), 0.0, 1e-4);
+        assert_eq!(verdict, FixVerdict::Rejected);
+        let (lost, _) = f.step(25.0, None, 0.0, 1e-4);
+        assert!(lost.is_none(), "no estimate after 24 s without a fix");
+        assert!(f.predicted_position(25.0).is_none(), "lost");
+        let (back, verdict) = f.step(25.1, Some(&fix_at(80.0, 0.0, 1.0)), 0.0, 1e-4);
+        assert_eq!(verdict, FixVerdict::Restarted);
+        assert_eq!(back.expect("restarted").position_in_world.x, 80.0);
+        // Lost again: a fix farther than the UAV could have flown does not restart it.
+        f.step(50.0, None, 0.0, 1e-4);
+        let (none, verdict) = f.step(50.5, Some(&fix_at(2000.0, 0.0, 1.0)), 0.0, 1e-4);
+        assert!(none.is_none() && verdict == FixVerdict::Rejected);
+        let mut single = fix_at(90.0, 0.0, 1.0);
+        single.towers_used.truncate(1);
+        let (none, verdict) = f.step(50.6, Some(&single), 0.0, 1e-4);
+        assert!(
+            none.is_none() && verdict == FixVerdict::Rejected,
+            "one tower cannot restart"
+        );
+    }
+
+    #[test]
+    fn persistent_disagreement_restarts_from_the_fixes() {
+        let params = FilterParams::default();
+        let mut f = PoseFilter::new(params);
+        f.step(0.0, Some(&fix_at(0.0, 0.0, 0.5)), 0.0, 1e-4);
+        let mut verdicts = Vec::new();
+        for i in 1..=params.restart_after_rejections {
+            let (_, v) = f.step(
+                f64::from(i) / 30.0,
+                Some(&fix_at(100.0, 0.0, 0.5)),
+                0.0,
+                1e-4,
+            );
+            verdicts.push(v);
+        }
+        assert_eq!(verdicts.last(), Some(&FixVerdict::Restarted));
+        assert!(
+            verdicts[..verdicts.len() - 1]
+                .iter()
+                .all(|v| *v == FixVerdict::Rejected)
+        );
+    }
+}
