@@ -7,6 +7,7 @@ use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use towernav_edge::LandmarkMap;
+use towernav_edge::localizer::Method;
 use towernav_edge::report::FlightReport;
 use towernav_edge::shell::collector::{PoseCollector, wait_for_peer};
 use towernav_edge::shell::landmark_sync::LandmarkSync;
@@ -64,6 +65,16 @@ struct RunArgs {
     /// Keep a replica of the ground station's landmarks in this file and follow its changes.
     #[arg(long)]
     replica: Option<PathBuf>,
+    /// Fly a quadrotor plan over the seed field (seed-path-1, seed-path-2, straight,
+    /// out-and-back, lawnmower) with the realistic oracle; default: the skeleton's level flight.
+    #[arg(long)]
+    flight: Option<String>,
+    /// Per-frame estimator: ours (`rays`) or the seed's baseline (`seed`).
+    #[arg(long, default_value = "rays", value_parser = ["rays", "seed"])]
+    method: String,
+    /// Publish raw per-frame fixes instead of the EKF's estimates.
+    #[arg(long)]
+    no_filter: bool,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -93,7 +104,10 @@ fn main() -> anyhow::Result<()> {
 }
 
 async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
-    let scenario = Scenario::seed(args.seed);
+    let scenario = match &args.flight {
+        Some(plan) => Scenario::preset(towernav_sim::World::seed_field(), plan, args.seed)?,
+        None => Scenario::seed(args.seed),
+    };
     let endpoints = Endpoints {
         listen: args.listen.clone(),
         connect: args.connect.clone(),
@@ -175,6 +189,12 @@ async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
     );
     let options = SimFlightOptions {
         speed: (args.speed > 0.0).then_some(args.speed),
+        method: if args.method == "seed" {
+            Method::Seed
+        } else {
+            Method::Rays
+        },
+        filter: !args.no_filter,
         ..SimFlightOptions::default()
     };
     let record: FlightRecord = fly(&node, &scenario, map, options, sync.as_mut(), |n| {
