@@ -10,9 +10,21 @@ use towernav_sim::{Scenario, World};
 fn ours_meets_the_targets_where_the_seed_does_not() {
     let scenario = Scenario::preset(World::seed_field(), "seed-path-1", 1).expect("preset");
     let clean = evaluate(&scenario, 0.0, 1).summary();
-    assert!(clean.filtered.count > 4000, "{} estimates", clean.filtered.count);
-    assert!(clean.filtered.rms <= 2.0, "ours + EKF RMS {:.2} m", clean.filtered.rms);
-    assert!(clean.seed.rms > 2.0 * clean.filtered.rms, "seed {:.2} m", clean.seed.rms);
+    assert!(
+        clean.filtered.count > 4000,
+        "{} estimates",
+        clean.filtered.count
+    );
+    assert!(
+        clean.filtered.rms <= 2.0,
+        "ours + EKF RMS {:.2} m",
+        clean.filtered.rms
+    );
+    assert!(
+        clean.seed.rms > 2.0 * clean.filtered.rms,
+        "seed {:.2} m",
+        clean.seed.rms
+    );
     // Consistent covariance: mean 2-dof NEES near 2.
     assert!(
         (0.5..=4.0).contains(&clean.filtered_mean_nees_h),
@@ -28,5 +40,9 @@ fn ours_meets_the_targets_where_the_seed_does_not() {
         dirty.observations
     );
     let dirty = dirty.summary();
-    assert!(dirty.filtered.rms <= 4.0, "with outliers {:.2} m", dirty.filtered.rms);
+    assert!(
+        dirty.filtered.rms <= 4.0,
+        "with outliers {:.2} m",
+        dirty.filtered.rms
+    );
 }
