@@ -12,14 +12,19 @@ use towernav_geometry::{PinholeCamera, Pose};
 
 use crate::assignment::max_score_matching;
 use crate::landmarks::LandmarkMap;
+use crate::localizer::EDGE_MARGIN_PX;
 use crate::tracker::TrackOutput;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IdentityParams {
-    /// Expected spread of the predicted box centre, pixels.
+    /// Expected spread of the predicted box centre, pixels, from a rough pose guess.
     pub bearing_sigma_px: f64,
-    /// Expected spread of log(observed height / predicted height).
+    /// Expected spread of log(observed height / predicted height), rough guess.
     pub log_size_sigma: f64,
+    /// The same spreads when the guess is trusted (the filter is tracking to
+    /// about a metre): tight enough to tell apart towers that stand in a row.
+    pub trusted_bearing_sigma_px: f64,
+    pub trusted_log_size_sigma: f64,
     /// Gate on the normalised distance; farther candidates are never bound.
     pub gate: f64,
     /// A bound track that stays this far outside the gate of its own tower for
@@ -34,6 +39,8 @@ impl Default for IdentityParams {
         Self {
             bearing_sigma_px: 60.0,
             log_size_sigma: 0.3,
+            trusted_bearing_sigma_px: 12.0,
+            trusted_log_size_sigma: 0.12,
             gate: 3.0,
             release_gate: 4.5,
             release_after: 10,
@@ -98,16 +105,36 @@ impl Identity {
 
     /// Normalised distance between a track's box and a tower's predicted one
     /// (bearing and log size; size is skipped for a box cut by the image edge).
-    fn distance(&self, track: &TrackOutput, predicted: (f64, f64), image_height: f64) -> f64 {
+    fn distance(
+        &self,
+        track: &TrackOutput,
+        predicted: (f64, f64),
+        image: (f64, f64),
+        trusted: bool,
+    ) -> f64 {
         let p = self.params;
+        let (bearing_sigma, size_sigma) = if trusted {
+            (p.trusted_bearing_sigma_px, p.trusted_log_size_sigma)
+        } else {
+            (p.bearing_sigma_px, p.log_size_sigma)
+        };
         let (u, h) = predicted;
         let b = &track.bbox;
-        let bearing = (b.center_x() - u) / p.bearing_sigma_px;
-        let cut = b.top <= 1.0 || b.bottom >= image_height - 1.0;
-        let size = if cut || h <= 0.0 {
+        // An edge at the image border is the border's, not the tower's: a box
+        // cut at a side says nothing of the centre, one cut at top or bottom nothing of size.
+        let m = EDGE_MARGIN_PX;
+        let cut_side = b.left <= m || b.right >= image.0 - m;
+        let cut_end = b.top <= m || b.bottom >= image.1 - m;
+        // A near tower's box centre strays from its axis (cross-arms seen obliquely).
+        let bearing = if cut_side {
             0.0
         } else {
-            (b.height() / h).ln() / p.log_size_sigma
+            (b.center_x() - u) / (bearing_sigma + 0.08 * b.width())
+        };
+        let size = if cut_end || h <= 0.0 {
+            0.0
+        } else {
+            (b.height() / h).ln() / size_sigma
         };
         (bearing * bearing + size * size).sqrt()
     }
@@ -131,7 +158,10 @@ impl Identity {
         self.pinned.retain(|id, _| live_track_ids.contains(id));
         self.strikes.retain(|id, _| live_track_ids.contains(id));
         let camera_from_world = camera.world_from_camera(guess).inverse();
-        let image_height = f64::from(camera.intrinsics.height);
+        let image = (
+            f64::from(camera.intrinsics.width),
+            f64::from(camera.intrinsics.height),
+        );
         let predict = |i: usize| -> Option<(f64, f64)> {
             let tower = &map.towers[i];
             let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
@@ -147,7 +177,7 @@ impl Identity {
                     continue;
                 }
                 let off = predict(tower).is_none_or(|pred| {
-                    self.distance(t, pred, image_height) > self.params.release_gate
+                    self.distance(t, pred, image, true) > self.params.release_gate
                 });
                 let strikes = self.strikes.entry(t.track_id).or_insert(0);
                 *strikes = if off { *strikes + 1 } else { 0 };
@@ -182,7 +212,7 @@ impl Identity {
                     if map.towers[free[c]].tower_type != track.tower_type || pred.1 <= 0.0 {
                         return 0.0;
                     }
-                    self.params.gate - self.distance(track, pred, image_height)
+                    self.params.gate - self.distance(track, pred, image, guess_trusted)
                 },
                 f64::MIN_POSITIVE,
             );

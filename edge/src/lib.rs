@@ -10,12 +10,14 @@ pub mod identity;
 pub mod landmarks;
 pub mod loc_eval;
 pub mod localizer;
+pub mod mot_metrics;
 pub mod pipeline;
 pub mod replica;
 pub mod report;
 pub mod shell;
 pub mod sim_eval;
 pub mod tracker;
+pub mod tracking_eval;
 pub mod wire;
 
 pub use landmarks::{LandmarkMap, MapTower};

@@ -11,8 +11,10 @@ use towernav_sim::Scenario;
 
 use crate::landmarks::LandmarkMap;
 use crate::localizer::{Observation, single_tower_position};
+use crate::mot_metrics::{Hypothesis, MotAccumulator};
 use crate::pipeline::{BoundBox, FrameOutput, Pipeline, PipelineConfig};
-use crate::sim_eval::{ErrorStats, all_bound_right, error_stats};
+use crate::sim_eval::{ErrorStats, error_stats};
+use crate::tracking_eval::demanded;
 
 /// Per frame: truth and what each method said.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,9 +49,8 @@ pub struct EvalRun {
     pub towers: Vec<TowerRecord>,
     pub observations: usize,
     pub corrupted: usize,
-    /// Frames with tracks, and of them those with every track bound to its true tower.
-    pub frames_with_tracks: usize,
-    pub frames_bound_right: usize,
+    /// Of bound track-frames, the share bound to the right tower (`mot_metrics`).
+    pub binding_accuracy: f64,
 }
 
 /// Horizontal error statistics of each method over the frames where it gave a position.
@@ -61,7 +62,7 @@ pub struct Summary {
     /// Mean horizontal NEES of the filter (2 is consistent).
     pub filtered_mean_nees_h: f64,
     pub frames: usize,
-    /// Share of frames with tracks where every track is bound to its true tower.
+    /// Of bound track-frames, the share bound to the right tower.
     pub binding_accuracy: f64,
 }
 
@@ -88,8 +89,7 @@ impl EvalRun {
                 nees.iter().sum::<f64>() / nees.len() as f64
             },
             frames: self.frames.len(),
-            binding_accuracy: self.frames_bound_right as f64
-                / self.frames_with_tracks.max(1) as f64,
+            binding_accuracy: self.binding_accuracy,
         }
     }
 }
@@ -139,6 +139,7 @@ pub fn run(
     let k = &camera.intrinsics;
     let size = (f64::from(k.width), f64::from(k.height));
     let mut run = EvalRun::default();
+    let mut identity = MotAccumulator::default();
     for (truth, frame) in scenario.frames() {
         let mut corrupted = 0;
         let mut observed = 0;
@@ -146,10 +147,20 @@ pub fn run(
             observed = bound.len();
             corrupted = corrupt(bound, outlier_share, map.towers.len(), &mut rng, size);
         });
-        if let Some(right) = all_bound_right(&truth, &out, map) {
-            run.frames_with_tracks += 1;
-            run.frames_bound_right += usize::from(right);
-        }
+        let (gt, ignore): (Vec<_>, Vec<_>) =
+            truth.boxes.iter().partition(|b| demanded(b, scenario));
+        let gt: Vec<(String, _)> = gt.iter().map(|b| (b.tower_id.clone(), b.bbox)).collect();
+        let ignore: Vec<_> = ignore.iter().map(|b| b.bbox).collect();
+        let hyps: Vec<Hypothesis> = out
+            .tracks
+            .iter()
+            .map(|t| Hypothesis {
+                id: t.track_id.to_string(),
+                bbox: t.bbox,
+                tower: t.tower.map(|i| map.towers[i].id.clone()),
+            })
+            .collect();
+        identity.add_frame(&gt, &ignore, &hyps);
         run.observations += observed;
         run.corrupted += corrupted;
         let p = truth.pose.position_in_world;
@@ -212,6 +223,7 @@ pub fn run(
             });
         }
     }
+    run.binding_accuracy = identity.finish().binding_accuracy;
     run
 }
 

@@ -3,6 +3,7 @@
 use towernav_sim::FrameTruth;
 
 use crate::landmarks::LandmarkMap;
+use crate::mot_metrics::{MATCH_IOU, overlap};
 use crate::pipeline::FrameOutput;
 
 /// Whether every reported track is bound to its true tower. A track that overlaps
@@ -15,8 +16,8 @@ pub fn all_bound_right(truth: &FrameTruth, out: &FrameOutput, map: &LandmarkMap)
         let best = truth
             .boxes
             .iter()
-            .map(|b| (b.bbox.iou(&t.bbox), b))
-            .filter(|(iou, _)| *iou >= 0.5)
+            .map(|b| (overlap(&b.bbox, &t.bbox), b))
+            .filter(|(iou, _)| *iou >= MATCH_IOU)
             .max_by(|a, b| a.0.total_cmp(&b.0));
         let bound = t.tower.map(|i| map.towers[i].id.as_str());
         match best {

@@ -47,7 +47,7 @@ pub fn summary_table(rows: &[(String, Summary)]) -> Table {
         "ours per frame",
         "ours + EKF",
         "EKF mean NEES (2 dof)",
-        "frames bound right",
+        "binding accuracy",
     ]);
     for (name, s) in rows {
         table.add_row([
@@ -56,7 +56,7 @@ pub fn summary_table(rows: &[(String, Summary)]) -> Table {
             cell(&s.rays),
             cell(&s.filtered),
             format!("{:.2}", s.filtered_mean_nees_h),
-            format!("{:.1} %", 100.0 * s.binding_accuracy),
+            format!("{:.2} %", 100.0 * s.binding_accuracy),
         ]);
     }
     table
