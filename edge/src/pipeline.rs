@@ -8,7 +8,7 @@ use crate::filter::{Estimate, FilterParams, FixVerdict, PoseFilter};
 use crate::identity::{Identity, IdentityParams};
 use crate::landmarks::LandmarkMap;
 use crate::localizer::{Fix, LocalizerParams, Method, Observation, robust_lbl, seed_lbl};
-use crate::tracker::{SortParams, SortTracker};
+use crate::tracker::{CameraMotion, SortParams, SortTracker, Tracker, TrackerInput};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct PipelineConfig {
@@ -83,6 +83,8 @@ pub struct Pipeline {
     tracker: SortTracker,
     identity: Identity,
     filter: Option<PoseFilter>,
+    /// Last frame's IMU attitude, for camera-motion compensation.
+    prev_attitude: Option<towernav_geometry::Attitude>,
     /// The newest position estimate: the pose guess when the filter has none
     /// (no filter, or lost after an outage). Better than the take-off point.
     last_known: Option<Point3<f64>>,
@@ -96,6 +98,7 @@ impl Pipeline {
             filter: config.filter.map(PoseFilter::new),
             config,
             map,
+            prev_attitude: None,
             last_known: None,
         }
     }
@@ -150,7 +153,16 @@ impl Pipeline {
         frame: &DetectionFrame,
         tamper: impl FnOnce(&mut Vec<BoundBox>),
     ) -> FrameOutput {
-        let tracks = self.tracker.update(frame.time_s, &frame.detections);
+        let motion = self
+            .prev_attitude
+            .map(|before| CameraMotion::between(&self.config.camera, &before, &frame.imu_attitude));
+        self.prev_attitude = Some(frame.imu_attitude);
+        let tracks = self.tracker.step(&TrackerInput {
+            time_s: frame.time_s,
+            detections: &frame.detections,
+            motion: motion.as_ref(),
+            features: None,
+        });
         let live: Vec<u64> = self.tracker.live_ids().collect();
         let predicted = self.predicted_position(frame.time_s);
         let guess = Pose {

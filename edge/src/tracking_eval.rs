@@ -6,23 +6,36 @@ use towernav_sim::Scenario;
 use crate::landmarks::LandmarkMap;
 use crate::mot_metrics::{Hypothesis, MotAccumulator, MotMetrics};
 use crate::pipeline::{Pipeline, PipelineConfig};
-use crate::tracker::{SortParams, SortTracker};
+use crate::tracker::{
+    ByteParams, ByteTracker, CameraMotion, SortParams, SortTracker, Tracker, TrackerInput,
+};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
-    /// SORT alone: identities are its track ids.
+    /// SORT alone, as the seed ran it: identities are its track ids.
     Sort,
-    /// Ours: tracker, identity (map association, evidence, release) and
-    /// localization; identities are the bound towers.
+    /// SORT with camera-motion compensation from the IMU.
+    SortCmc,
+    /// ByteTrack-style with camera-motion compensation.
+    ByteTrack,
+    /// Ours: SORT with compensation, identity (map association, trusted-pose
+    /// gating, release) and localization; identities are the bound towers.
     Ours,
 }
 
 impl Method {
-    pub const ALL: [Method; 2] = [Method::Sort, Method::Ours];
+    pub const ALL: [Method; 4] = [
+        Method::Sort,
+        Method::SortCmc,
+        Method::ByteTrack,
+        Method::Ours,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Self::Sort => "SORT",
+            Self::SortCmc => "SORT + CMC",
+            Self::ByteTrack => "ByteTrack-style + CMC",
             Self::Ours => "ours (identity + map association)",
         }
     }
@@ -45,22 +58,39 @@ pub fn demanded(b: &towernav_sim::TruthBox, scenario: &Scenario) -> bool {
 pub fn run(scenario: &Scenario, map: &LandmarkMap, method: Method) -> TrackingRun {
     let mut acc = MotAccumulator::default();
     let mut frames = Vec::new();
-    let mut sort = SortTracker::new(SortParams::default());
+    let mut tracker: Box<dyn Tracker> = match method {
+        Method::ByteTrack => Box::new(ByteTracker::new(ByteParams::default())),
+        _ => Box::new(SortTracker::new(SortParams::default())),
+    };
+    let mut prev_attitude = None;
     let mut pipeline = Pipeline::new(
         PipelineConfig::new(scenario.camera, scenario.start_in_world()),
         map.clone(),
     );
     for (truth, frame) in scenario.frames() {
         let hyps: Vec<Hypothesis> = match method {
-            Method::Sort => sort
-                .update(frame.time_s, &frame.detections)
-                .into_iter()
-                .map(|t| Hypothesis {
-                    id: t.track_id.to_string(),
-                    bbox: t.bbox,
-                    tower: None,
-                })
-                .collect(),
+            Method::Sort | Method::SortCmc | Method::ByteTrack => {
+                let motion = prev_attitude
+                    .filter(|_| method != Method::Sort)
+                    .map(|before| {
+                        CameraMotion::between(&scenario.camera, &before, &frame.imu_attitude)
+                    });
+                prev_attitude = Some(frame.imu_attitude);
+                tracker
+                    .step(&TrackerInput {
+                        time_s: frame.time_s,
+                        detections: &frame.detections,
+                        motion: motion.as_ref(),
+                        features: None,
+                    })
+                    .into_iter()
+                    .map(|t| Hypothesis {
+                        id: t.track_id.to_string(),
+                        bbox: t.bbox,
+                        tower: None,
+                    })
+                    .collect()
+            }
             Method::Ours => pipeline
                 .process(&frame)
                 .tracks

@@ -21,6 +21,18 @@ impl PixelBox {
         }
     }
 
+    /// The smallest box holding every point; `None` for no points.
+    /// (Folding from an "empty" infinite box does not work: `new` orders its edges.)
+    pub fn enclosing(points: impl IntoIterator<Item = nalgebra::Point2<f64>>) -> Option<Self> {
+        let mut it = points.into_iter();
+        let first = it.next()?;
+        let (mut l, mut t, mut r, mut b) = (first.x, first.y, first.x, first.y);
+        for p in it {
+            (l, t, r, b) = (l.min(p.x), t.min(p.y), r.max(p.x), b.max(p.y));
+        }
+        Some(Self::new(l, t, r, b))
+    }
+
     pub fn width(&self) -> f64 {
         self.right - self.left
     }
@@ -100,5 +112,18 @@ mod tests {
             prop_assert!(c.left >= 0.0 && c.right <= 640.0 && c.top >= 0.0 && c.bottom <= 480.0);
             prop_assert!(c.area() <= b.area() + 1e-9);
         }
+    }
+
+    #[test]
+    fn enclosing_holds_its_points() {
+        use nalgebra::Point2;
+        let b = PixelBox::enclosing([
+            Point2::new(5.0, 7.0),
+            Point2::new(1.0, 9.0),
+            Point2::new(3.0, 2.0),
+        ])
+        .expect("points");
+        assert_eq!(b, PixelBox::new(1.0, 2.0, 5.0, 9.0));
+        assert!(PixelBox::enclosing(std::iter::empty()).is_none());
     }
 }

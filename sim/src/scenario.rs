@@ -35,6 +35,9 @@ pub struct ImuParams {
     pub yaw_sigma: f64,
     /// A constant heading bias (magnetometer calibration), radians.
     pub yaw_bias: f64,
+    /// Correlation time of the errors, seconds: an AHRS's attitude error
+    /// wanders slowly rather than jumping every frame. 0: white per frame.
+    pub correlation_s: f64,
 }
 
 impl Default for ImuParams {
@@ -43,6 +46,7 @@ impl Default for ImuParams {
             roll_pitch_sigma: 0.1f64.to_radians(),
             yaw_sigma: 0.2f64.to_radians(),
             yaw_bias: 0.0,
+            correlation_s: 3.0,
         }
     }
 }
@@ -61,6 +65,7 @@ impl Scenario {
             oracle: OracleParams::skeleton(),
             imu: ImuParams {
                 roll_pitch_sigma: 0.0,
+                correlation_s: 0.0,
                 ..ImuParams::default()
             },
         }
@@ -118,16 +123,33 @@ impl Scenario {
             f64::from(self.camera.intrinsics.height),
         );
         let outlines = outlines(&self.world);
+        // First-order Gauss-Markov errors (yaw, roll, pitch) in units of their sigma.
+        let keep = if imu.correlation_s > 0.0 {
+            (-1.0 / (self.fps * imu.correlation_s)).exp()
+        } else {
+            0.0
+        };
+        let drive = (1.0 - keep * keep).sqrt();
+        let mut state: Option<[f64; 3]> = None;
         (0..self.frame_count()).map(move |seq| {
             let truth = self.truth_with(&outlines, seq);
             let detections = oracle.detect(&truth, w, h);
-            let mut noise = |sigma: f64| sigma.max(0.0) * imu_rng.sample::<f64, _>(StandardNormal);
+            let with_roll_pitch = imu.roll_pitch_sigma > 0.0;
+            let mut draw = || imu_rng.sample::<f64, _>(StandardNormal);
+            let fresh = [
+                draw(),
+                if with_roll_pitch { draw() } else { 0.0 },
+                if with_roll_pitch { draw() } else { 0.0 },
+            ];
+            let e = match state {
+                None => fresh,
+                Some(prev) => std::array::from_fn(|i| keep * prev[i] + drive * fresh[i]),
+            };
+            state = Some(e);
             let mut imu_attitude = truth.pose.attitude;
-            imu_attitude.yaw += imu.yaw_bias + noise(imu.yaw_sigma);
-            if imu.roll_pitch_sigma > 0.0 {
-                imu_attitude.roll += noise(imu.roll_pitch_sigma);
-                imu_attitude.pitch += noise(imu.roll_pitch_sigma);
-            }
+            imu_attitude.yaw += imu.yaw_bias + imu.yaw_sigma.max(0.0) * e[0];
+            imu_attitude.roll += imu.roll_pitch_sigma.max(0.0) * e[1];
+            imu_attitude.pitch += imu.roll_pitch_sigma.max(0.0) * e[2];
             let input = DetectionFrame {
                 seq,
                 time_s: truth.time_s,

@@ -104,21 +104,12 @@ pub fn truth_box_with(
 /// Image box of a distractor, with its horizontal distance; `None` out of view.
 fn distractor_box(camera: &PinholeCamera, pose: &Pose, d: &Distractor) -> Option<(PixelBox, f64)> {
     let camera_from_world = camera.world_from_camera(pose).inverse();
-    let mut b = PixelBox::new(
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    );
-    for corner in d.bounding_corners() {
-        let px = camera.project(&(camera_from_world * corner))?;
-        b = PixelBox::new(
-            b.left.min(px.x),
-            b.top.min(px.y),
-            b.right.max(px.x),
-            b.bottom.max(px.y),
-        );
-    }
+    let corners: Option<Vec<_>> = d
+        .bounding_corners()
+        .iter()
+        .map(|c| camera.project(&(camera_from_world * c)))
+        .collect();
+    let b = PixelBox::enclosing(corners?)?;
     let distance = (d.foot_in_world() - pose.position_in_world).xy().norm();
     Some((b, distance))
 }

@@ -71,6 +71,27 @@ impl BoxKalman {
         self.p = (Cov::identity() - k * hm) * self.p;
     }
 
+    /// Move the state to where the camera's own motion put the box
+    /// (camera-motion compensation): the centre and size follow, rates stay.
+    pub fn warp(&mut self, to: &PixelBox) {
+        self.x[0] = to.center_x();
+        self.x[1] = to.center_y();
+        self.x[2] = to.width();
+        self.x[3] = to.height();
+    }
+
+    /// Squared Mahalanobis distance of a measured box from the predicted one
+    /// (4 dof: centre and size), for DeepSORT-style gating.
+    pub fn mahalanobis2(&self, b: &PixelBox) -> f64 {
+        let h = self.x[3].max(1.0);
+        let r = SMatrix::<f64, 4, 4>::from_diagonal_element((POS_STD * h).powi(2));
+        let hm = SMatrix::<f64, 4, 8>::identity();
+        let s = hm * self.p * hm.transpose() + r;
+        let d = measurement(b) - hm * self.x;
+        s.try_inverse()
+            .map_or(f64::INFINITY, |si| (d.transpose() * si * d)[(0, 0)])
+    }
+
     pub fn bbox(&self) -> PixelBox {
         let (cx, cy) = (self.x[0], self.x[1]);
         let (w, h) = (self.x[2].max(1.0), self.x[3].max(1.0));

@@ -1,11 +1,9 @@
 //! SORT: Kalman prediction plus Hungarian assignment on IoU (Bewley et al. 2016).
 //! Boxes of different tower types never match.
 
-use towernav_geometry::PixelBox;
-use towernav_protocol::{Detection, TowerType};
+use towernav_protocol::Detection;
 
-use super::kalman::BoxKalman;
-use crate::assignment::max_score_matching;
+use super::common::{Track, TrackOutput, Tracker, TrackerInput, advance, iou_matches};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SortParams {
@@ -31,27 +29,6 @@ impl Default for SortParams {
 }
 
 #[derive(Debug, Clone)]
-struct Track {
-    id: u64,
-    kf: BoxKalman,
-    tower_type: TowerType,
-    hits: u32,
-    last_update_s: f64,
-    confirmed: bool,
-}
-
-/// A confirmed track that a detection updated in this frame.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrackOutput {
-    pub track_id: u64,
-    /// The detection's box: what the camera measured this frame.
-    pub bbox: PixelBox,
-    pub tower_type: TowerType,
-    /// The detector's confidence in that box.
-    pub score: f64,
-}
-
-#[derive(Debug, Clone)]
 pub struct SortTracker {
     params: SortParams,
     tracks: Vec<Track>,
@@ -74,59 +51,53 @@ impl SortTracker {
         self.tracks.iter().map(|t| t.id)
     }
 
+    /// One frame with no camera-motion compensation.
     pub fn update(&mut self, time_s: f64, detections: &[Detection]) -> Vec<TrackOutput> {
+        self.step(&TrackerInput::new(time_s, detections))
+    }
+}
+
+impl Tracker for SortTracker {
+    fn name(&self) -> &'static str {
+        "SORT"
+    }
+
+    fn live_ids(&self) -> Vec<u64> {
+        self.tracks.iter().map(|t| t.id).collect()
+    }
+
+    fn step(&mut self, input: &TrackerInput<'_>) -> Vec<TrackOutput> {
+        let time_s = input.time_s;
         let dt = self.last_time_s.map_or(0.0, |t| (time_s - t).max(0.0));
         self.last_time_s = Some(time_s);
-        for t in &mut self.tracks {
-            t.kf.predict(dt);
-        }
-        let predicted: Vec<PixelBox> = self.tracks.iter().map(|t| t.kf.bbox()).collect();
-        let detections: Vec<&Detection> =
-            detections.iter().filter(|d| d.bbox.is_finite()).collect();
-        let matches = max_score_matching(
-            self.tracks.len(),
-            detections.len(),
-            |r, c| {
-                if self.tracks[r].tower_type == detections[c].tower_type {
-                    predicted[r].iou(&detections[c].bbox)
-                } else {
-                    0.0
-                }
-            },
+        advance(&mut self.tracks, dt, input.motion);
+        let detections: Vec<&Detection> = input
+            .detections
+            .iter()
+            .filter(|d| d.bbox.is_finite())
+            .collect();
+        let all_tracks: Vec<usize> = (0..self.tracks.len()).collect();
+        let all_dets: Vec<usize> = (0..detections.len()).collect();
+        let matches = iou_matches(
+            &self.tracks,
+            &all_tracks,
+            &detections,
+            &all_dets,
             self.params.iou_min,
         );
         let mut matched_detection = vec![false; detections.len()];
         let mut outputs = Vec::new();
         for (r, c) in matches {
             matched_detection[c] = true;
-            let track = &mut self.tracks[r];
-            let d = detections[c];
-            track.kf.update(&d.bbox);
-            track.hits += 1;
-            track.last_update_s = time_s;
-            track.confirmed |= track.hits >= self.params.min_hits;
-            if track.confirmed {
-                outputs.push(TrackOutput {
-                    track_id: track.id,
-                    bbox: d.bbox,
-                    tower_type: d.tower_type,
-                    score: d.score,
-                });
-            }
+            outputs.extend(self.tracks[r].hit(detections[c], time_s, self.params.min_hits));
         }
         for (d, _) in detections
             .iter()
             .zip(&matched_detection)
             .filter(|(d, m)| !**m && d.score >= self.params.min_score)
         {
-            self.tracks.push(Track {
-                id: self.next_id,
-                kf: BoxKalman::new(&d.bbox),
-                tower_type: d.tower_type,
-                hits: 1,
-                last_update_s: time_s,
-                confirmed: self.params.min_hits <= 1,
-            });
+            self.tracks
+                .push(Track::new(self.next_id, d, time_s, self.params.min_hits));
             self.next_id += 1;
         }
         let max_coast = self.params.max_coast_s;
@@ -140,6 +111,8 @@ impl SortTracker {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use towernav_geometry::PixelBox;
+    use towernav_protocol::TowerType;
 
     fn det(x: f64, t: TowerType) -> Detection {
         Detection {
