@@ -76,7 +76,7 @@ impl Track {
         self.hits += 1;
         self.last_update_s = time_s;
         self.confirmed |= self.hits >= min_hits;
-        self.confirmed.then(|| TrackOutput {
+        self.confirmed.then_some(TrackOutput {
             track_id: self.id,
             bbox: d.bbox,
             tower_type: d.tower_type,
