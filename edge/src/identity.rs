@@ -32,6 +32,9 @@ pub struct IdentityParams {
     /// so that a wrong early binding does not last the whole track.
     pub release_gate: f64,
     pub release_after: u32,
+    /// Another tower must fit better by this much (normalised distance) to
+    /// count as evidence against the current binding.
+    pub switch_margin: f64,
 }
 
 impl Default for IdentityParams {
@@ -44,6 +47,7 @@ impl Default for IdentityParams {
             gate: 3.0,
             release_gate: 4.5,
             release_after: 10,
+            switch_margin: 1.0,
         }
     }
 }
@@ -108,23 +112,27 @@ impl Identity {
     fn distance(
         &self,
         track: &TrackOutput,
-        predicted: (f64, f64),
+        predicted: (f64, f64, f64),
         image: (f64, f64),
         trusted: bool,
-    ) -> f64 {
+    ) -> Option<f64> {
         let p = self.params;
         let (bearing_sigma, size_sigma) = if trusted {
             (p.trusted_bearing_sigma_px, p.trusted_log_size_sigma)
         } else {
             (p.bearing_sigma_px, p.log_size_sigma)
         };
-        let (u, h) = predicted;
+        let (u, h, foot_v) = predicted;
         let b = &track.bbox;
         // An edge at the image border is the border's, not the tower's: a box
         // cut at a side says nothing of the centre, one cut at top or bottom nothing of size.
         let m = EDGE_MARGIN_PX;
         let cut_side = b.left <= m || b.right >= image.0 - m;
         let cut_end = b.top <= m || b.bottom >= image.1 - m;
+        if cut_side && cut_end {
+            // Neither where it is nor how big: no evidence either way.
+            return None;
+        }
         // A near tower's box centre strays from its axis (cross-arms seen obliquely).
         let bearing = if cut_side {
             0.0
@@ -136,7 +144,14 @@ impl Identity {
         } else {
             (b.height() / h).ln() / size_sigma
         };
-        (bearing * bearing + size * size).sqrt()
+        // The foot's row tells range apart from height: a taller tower farther
+        // along the same bearing can have the same box height, never the same foot.
+        let foot = if trusted && b.bottom < image.1 - m {
+            (b.bottom - foot_v) / (bearing_sigma + 0.05 * b.height())
+        } else {
+            0.0
+        };
+        Some((bearing * bearing + size * size + foot * foot).sqrt())
     }
 
     /// Binds this frame's tracks; returns each track's tower index, in order.
@@ -162,23 +177,49 @@ impl Identity {
             f64::from(camera.intrinsics.width),
             f64::from(camera.intrinsics.height),
         );
-        let predict = |i: usize| -> Option<(f64, f64)> {
+        let predict = |i: usize| -> Option<(f64, f64, f64)> {
             let tower = &map.towers[i];
             let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
             let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
-            Some((0.5 * (foot.x + top.x), foot.y - top.y))
+            Some((0.5 * (foot.x + top.x), foot.y - top.y, foot.y))
+        };
+        // Towers near the guess, asked for at most once per frame.
+        let mut nearby: Option<Vec<usize>> = None;
+        let mut candidates = Some(candidates);
+        let mut nearby_towers = |nearby: &mut Option<Vec<usize>>| -> Vec<usize> {
+            nearby
+                .get_or_insert_with(|| candidates.take().map(|f| f()).unwrap_or_default())
+                .clone()
         };
         if guess_trusted {
-            for t in tracks {
-                let Some(&tower) = self.bindings.get(&t.track_id) else {
-                    continue;
+            let bound_here: Vec<(&TrackOutput, usize)> = tracks
+                .iter()
+                .filter(|t| !self.pinned.contains_key(&t.track_id))
+                .filter_map(|t| self.bindings.get(&t.track_id).map(|&b| (t, b)))
+                .collect();
+            let near = if bound_here.is_empty() {
+                Vec::new()
+            } else {
+                nearby_towers(&mut nearby)
+            };
+            for (t, tower) in bound_here {
+                let current = predict(tower).map(|pred| self.distance(t, pred, image, true));
+                // Evidence against the binding: far from its own tower, or a
+                // tower of the same type fits clearly better (hysteresis margin).
+                let off = match current {
+                    None => true,
+                    Some(None) => false,
+                    Some(Some(d)) => {
+                        d > self.params.release_gate
+                            || near.iter().any(|&other| {
+                                other != tower
+                                    && map.towers[other].tower_type == t.tower_type
+                                    && predict(other)
+                                        .and_then(|p| self.distance(t, p, image, true))
+                                        .is_some_and(|alt| alt + self.params.switch_margin < d)
+                            })
+                    }
                 };
-                if self.pinned.contains_key(&t.track_id) {
-                    continue;
-                }
-                let off = predict(tower).is_none_or(|pred| {
-                    self.distance(t, pred, image, true) > self.params.release_gate
-                });
                 let strikes = self.strikes.entry(t.track_id).or_insert(0);
                 *strikes = if off { *strikes + 1 } else { 0 };
                 if *strikes >= self.params.release_after {
@@ -196,11 +237,12 @@ impl Identity {
             .collect();
         if !unbound.is_empty() {
             let taken: Vec<usize> = self.bindings.values().copied().collect();
-            let free: Vec<usize> = candidates()
+            let free: Vec<usize> = nearby_towers(&mut nearby)
                 .into_iter()
                 .filter(|i| !taken.contains(i))
                 .collect();
-            let predicted: Vec<Option<(f64, f64)>> = free.iter().map(|&i| predict(i)).collect();
+            let predicted: Vec<Option<(f64, f64, f64)>> =
+                free.iter().map(|&i| predict(i)).collect();
             let matches = max_score_matching(
                 unbound.len(),
                 free.len(),
@@ -212,7 +254,8 @@ impl Identity {
                     if map.towers[free[c]].tower_type != track.tower_type || pred.1 <= 0.0 {
                         return 0.0;
                     }
-                    self.params.gate - self.distance(track, pred, image, guess_trusted)
+                    self.distance(track, pred, image, guess_trusted)
+                        .map_or(0.0, |d| self.params.gate - d)
                 },
                 f64::MIN_POSITIVE,
             );

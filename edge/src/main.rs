@@ -31,6 +31,15 @@ enum Command {
     Run(RunArgs),
     /// Run the flight with a listener on loopback and print the accuracy report.
     Demo(RunArgs),
+    /// The seed's Table 2: SORT, ByteTrack-style and ours on the seed's paths and
+    /// random fields (oracle detector), with MOT-challenge result files.
+    EvalTracking {
+        /// Folder for the MOT-challenge files.
+        #[arg(long, default_value = "target/tracking-eval")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// Reproduce the seed's localization analysis (seed vs ours, tables and PNG plots).
     EvalLocalization {
         /// Folder for the plots.
@@ -89,6 +98,9 @@ fn main() -> anyhow::Result<()> {
     if let Command::EvalLocalization { out, seed } = &cli.command {
         return towernav_edge::shell::loc_eval_cmd::write_all(out, *seed);
     }
+    if let Command::EvalTracking { out, seed } = &cli.command {
+        return towernav_edge::shell::tracking_eval_cmd::write_all(out, *seed);
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -98,7 +110,7 @@ fn main() -> anyhow::Result<()> {
         match cli.command {
             Command::Run(args) => run(args, false).await,
             Command::Demo(args) => run(args, true).await,
-            Command::EvalLocalization { .. } => Ok(()),
+            Command::EvalLocalization { .. } | Command::EvalTracking { .. } => Ok(()),
         }
     })
 }

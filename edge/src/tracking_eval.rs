@@ -31,6 +31,16 @@ impl Method {
         Method::Ours,
     ];
 
+    /// For file names.
+    pub fn slug(self) -> &'static str {
+        match self {
+            Self::Sort => "sort",
+            Self::SortCmc => "sort-cmc",
+            Self::ByteTrack => "bytetrack-cmc",
+            Self::Ours => "ours",
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Self::Sort => "SORT",

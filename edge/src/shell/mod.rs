@@ -8,5 +8,6 @@ pub mod loc_eval_cmd;
 pub mod loc_plots;
 pub mod node;
 pub mod sim_flight;
+pub mod tracking_eval_cmd;
 
 pub use error::ShellError;

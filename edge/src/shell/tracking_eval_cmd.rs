@@ -1,0 +1,128 @@
+//! `towernav-edge eval-tracking`: the seed's Table 2 for every tracker and for
+//! ours, on the seed's paths and seeded random fields, with MOT-challenge files.
+
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::Context;
+use comfy_table::Table;
+use towernav_sim::world::WorldParams;
+use towernav_sim::{Scenario, World};
+
+use crate::landmarks::LandmarkMap;
+use crate::tracking_eval::{Method, TrackingRun, run};
+
+/// Scenarios: the seed's two paths over its field, and two random fields.
+pub fn cases(seed: u64) -> anyhow::Result<Vec<(String, Scenario)>> {
+    let mut out = Vec::new();
+    for path in ["seed-path-1", "seed-path-2"] {
+        out.push((
+            path.to_string(),
+            Scenario::preset(World::seed_field(), path, seed)?,
+        ));
+    }
+    for w in 0..2u64 {
+        let world_seed = seed.wrapping_mul(7919).wrapping_add(w);
+        let world = World::random(world_seed, &WorldParams::default());
+        let extent = WorldParams::default().extent_m;
+        let towers: Vec<(f64, f64, f64)> = world
+            .towers
+            .iter()
+            .map(|t| (t.foot_in_world.x, t.foot_in_world.y, t.height_m))
+            .collect();
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(world_seed);
+        let plan = towernav_sim::waypoints::random_crossing(extent, &towers, &mut rng);
+        out.push((
+            format!("random field {world_seed}"),
+            Scenario::flying(world, &plan, seed),
+        ));
+    }
+    Ok(out)
+}
+
+/// One MOT-challenge results file: `frame,id,left,top,width,height,conf,-1,-1,-1`.
+/// Identities that are not numbers (tower ids) are numbered in order of appearance.
+fn write_mot(path: &Path, r: &TrackingRun) -> anyhow::Result<()> {
+    let mut file = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+    );
+    let mut numbers: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+    for (seq, hyps) in &r.frames {
+        for h in hyps {
+            let next = numbers.len() + 1;
+            let id = *numbers.entry(h.id.as_str()).or_insert(next);
+            writeln!(
+                file,
+                "{},{},{:.2},{:.2},{:.2},{:.2},1,-1,-1,-1",
+                seq + 1,
+                id,
+                h.bbox.left,
+                h.bbox.top,
+                h.bbox.width(),
+                h.bbox.height()
+            )?;
+        }
+    }
+    file.flush()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+pub fn write_all(out: &Path, seed: u64) -> anyhow::Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    for (name, scenario) in cases(seed)? {
+        let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
+        let mut table = Table::new();
+        table.set_header([
+            "method",
+            "IDs / true towers",
+            "repetitive",
+            "hop",
+            "ID switches",
+            "frag",
+            "MOTA",
+            "IDF1",
+            "binding accuracy",
+            "bound share",
+        ]);
+        let slug: String = name
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect();
+        for method in Method::ALL {
+            let r = run(&scenario, &map, method);
+            let m = r.metrics;
+            let binds = method == Method::Ours;
+            table.add_row([
+                method.name().to_string(),
+                format!("{} / {}", m.distinct_ids, m.true_towers),
+                m.repetitive_errors.to_string(),
+                m.hop_errors.to_string(),
+                m.id_switches.to_string(),
+                m.fragmentations.to_string(),
+                format!("{:.3}", m.mota),
+                format!("{:.3}", m.idf1),
+                if binds {
+                    format!("{:.2} %", 100.0 * m.binding_accuracy)
+                } else {
+                    "-".into()
+                },
+                if binds {
+                    format!("{:.1} %", 100.0 * m.binding_coverage)
+                } else {
+                    "-".into()
+                },
+            ]);
+            let file = out.join(format!("{slug}.{}.txt", method.slug()));
+            write_mot(&file, &r)?;
+        }
+        println!(
+            "{name} ({} towers, {} frames, oracle detector):\n{table}\n",
+            scenario.world.towers.len(),
+            scenario.frame_count()
+        );
+    }
+    println!("MOT-challenge results in {}", out.display());
+    Ok(())
+}
