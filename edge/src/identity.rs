@@ -202,8 +202,18 @@ impl Identity {
             } else {
                 nearby_towers(&mut nearby)
             };
+            // Predict each nearby tower once, not once per track.
+            let near_pred: Vec<(usize, (f64, f64, f64))> = near
+                .iter()
+                .filter_map(|&i| predict(i).map(|p| (i, p)))
+                .collect();
             for (t, tower) in bound_here {
-                let current = predict(tower).map(|pred| self.distance(t, pred, image, true));
+                let own = near_pred
+                    .iter()
+                    .find(|(i, _)| *i == tower)
+                    .map(|(_, p)| *p)
+                    .or_else(|| predict(tower));
+                let current = own.map(|pred| self.distance(t, pred, image, true));
                 // Evidence against the binding: far from its own tower, or a
                 // tower of the same type fits clearly better (hysteresis margin).
                 let off = match current {
@@ -211,11 +221,11 @@ impl Identity {
                     Some(None) => false,
                     Some(Some(d)) => {
                         d > self.params.release_gate
-                            || near.iter().any(|&other| {
+                            || near_pred.iter().any(|&(other, p)| {
                                 other != tower
                                     && map.towers[other].tower_type == t.tower_type
-                                    && predict(other)
-                                        .and_then(|p| self.distance(t, p, image, true))
+                                    && self
+                                        .distance(t, p, image, true)
                                         .is_some_and(|alt| alt + self.params.switch_margin < d)
                             })
                     }

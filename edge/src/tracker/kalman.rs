@@ -39,36 +39,53 @@ impl BoxKalman {
         Self { x, p }
     }
 
+    /// Constant-velocity prediction. F = [[I, dt I], [0, I]] couples only each
+    /// position with its rate, so F P F^T is done in 4x4 blocks (8x8 products
+    /// cost several times more, in every track, every frame).
     pub fn predict(&mut self, dt: f64) {
         let dt = dt.max(0.0);
-        let mut f = Cov::identity();
-        for i in 0..4 {
-            f[(i, i + 4)] = dt;
-        }
         let h = self.x[3].max(1.0);
-        let mut q = Cov::zeros();
+        let rates = self.x.fixed_rows::<4>(4).into_owned();
+        self.x.fixed_rows_mut::<4>(0).axpy(dt, &rates, 1.0);
+        let p11 = self.p.fixed_view::<4, 4>(0, 0).into_owned();
+        let p12 = self.p.fixed_view::<4, 4>(0, 4).into_owned();
+        let p21 = self.p.fixed_view::<4, 4>(4, 0).into_owned();
+        let p22 = self.p.fixed_view::<4, 4>(4, 4).into_owned();
+        let mut n11 = p11 + (p12 + p21) * dt + p22 * (dt * dt);
+        let n12 = p12 + p22 * dt;
+        let n21 = p21 + p22 * dt;
+        let mut n22 = p22;
         for i in 0..4 {
-            q[(i, i)] = (POS_STD * h).powi(2) * dt;
-            q[(i + 4, i + 4)] = (VEL_STD * h).powi(2) * dt;
+            n11[(i, i)] += (POS_STD * h).powi(2) * dt;
+            n22[(i, i)] += (VEL_STD * h).powi(2) * dt;
         }
-        self.x = f * self.x;
-        self.p = f * self.p * f.transpose() + q;
+        self.p.fixed_view_mut::<4, 4>(0, 0).copy_from(&n11);
+        self.p.fixed_view_mut::<4, 4>(0, 4).copy_from(&n12);
+        self.p.fixed_view_mut::<4, 4>(4, 0).copy_from(&n21);
+        self.p.fixed_view_mut::<4, 4>(4, 4).copy_from(&n22);
     }
 
+    /// Measurement update with H = [I 0]: only the position block enters S.
     pub fn update(&mut self, b: &PixelBox) {
         let z = measurement(b);
         let h = self.x[3].max(1.0);
-        let r = SMatrix::<f64, 4, 4>::from_diagonal_element((POS_STD * h).powi(2));
-        let hm = SMatrix::<f64, 4, 8>::identity();
-        let s = hm * self.p * hm.transpose() + r;
+        let mut s = self.p.fixed_view::<4, 4>(0, 0).into_owned();
+        for i in 0..4 {
+            s[(i, i)] += (POS_STD * h).powi(2);
+        }
         let Some(s_inv) = s.try_inverse() else {
             // Degenerate covariance: restart from the measurement rather than diverge.
             *self = Self::new(b);
             return;
         };
-        let k = self.p * hm.transpose() * s_inv;
-        self.x += k * (z - hm * self.x);
-        self.p = (Cov::identity() - k * hm) * self.p;
+        // K = P H^T S^-1 = (first four columns of P) S^-1.
+        let p_ht = self.p.fixed_view::<8, 4>(0, 0).into_owned();
+        let k = p_ht * s_inv;
+        let innovation = z - self.x.fixed_rows::<4>(0);
+        self.x += k * innovation;
+        // P = P - K H P, and H P is the first four rows of P.
+        let hp = self.p.fixed_view::<4, 8>(0, 0).into_owned();
+        self.p -= k * hp;
     }
 
     /// Move the state to where the camera's own motion put the box
