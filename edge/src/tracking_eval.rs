@@ -1,42 +1,62 @@
 //! Tracking and identity evaluation (pure): run a tracker (or the whole
 //! pipeline, for ours) over a scenario and score it with `mot_metrics`.
 
-use towernav_sim::Scenario;
+use towernav_geometry::{PinholeCamera, PixelBox};
+use towernav_sim::{Conditions, Renderer, Scenario};
 
 use crate::landmarks::LandmarkMap;
 use crate::mot_metrics::{Hypothesis, MotAccumulator, MotMetrics};
 use crate::pipeline::{Pipeline, PipelineConfig};
+use crate::tracker::appearance::{DIM, describe};
 use crate::tracker::{
-    ByteParams, ByteTracker, CameraMotion, SortParams, SortTracker, Tracker, TrackerInput,
+    ByteParams, ByteTracker, CameraMotion, DeepSortParams, DeepSortTracker, SortParams,
+    SortTracker, TimelineCorrection, TimelineParams, Tracker, TrackerInput,
 };
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
     /// SORT alone, as the seed ran it: identities are its track ids.
     Sort,
+    /// SORT followed by the seed's timeline correction.
+    SortTimeline,
     /// SORT with camera-motion compensation from the IMU.
     SortCmc,
     /// ByteTrack-style with camera-motion compensation.
     ByteTrack,
+    /// DeepSORT with camera-motion compensation and appearance from rendered crops.
+    DeepSort,
+    /// DeepSORT followed by the seed's timeline correction.
+    DeepSortTimeline,
     /// Ours: SORT with compensation, identity (map association, trusted-pose
-    /// gating, release) and localization; identities are the bound towers.
+    /// gating, evidence with hysteresis) and localization; identities are the bound towers.
     Ours,
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 7] = [
         Method::Sort,
+        Method::SortTimeline,
         Method::SortCmc,
         Method::ByteTrack,
+        Method::DeepSort,
+        Method::DeepSortTimeline,
         Method::Ours,
     ];
+
+    /// Whether the method needs appearance descriptors of each detection.
+    pub fn needs_features(self) -> bool {
+        matches!(self, Self::DeepSort | Self::DeepSortTimeline)
+    }
 
     /// For file names.
     pub fn slug(self) -> &'static str {
         match self {
             Self::Sort => "sort",
+            Self::SortTimeline => "sort-timeline",
             Self::SortCmc => "sort-cmc",
             Self::ByteTrack => "bytetrack-cmc",
+            Self::DeepSort => "deepsort-cmc",
+            Self::DeepSortTimeline => "deepsort-cmc-timeline",
             Self::Ours => "ours",
         }
     }
@@ -44,8 +64,11 @@ impl Method {
     pub fn name(self) -> &'static str {
         match self {
             Self::Sort => "SORT",
+            Self::SortTimeline => "SORT + timeline correction",
             Self::SortCmc => "SORT + CMC",
             Self::ByteTrack => "ByteTrack-style + CMC",
+            Self::DeepSort => "DeepSORT + CMC",
+            Self::DeepSortTimeline => "DeepSORT + CMC + timeline correction",
             Self::Ours => "ours (identity + map association)",
         }
     }
@@ -65,43 +88,66 @@ pub fn demanded(b: &towernav_sim::TruthBox, scenario: &Scenario) -> bool {
     b.bbox.height() >= 2.0 * scenario.oracle.min_height_px && b.occluded < 0.75
 }
 
-pub fn run(scenario: &Scenario, map: &LandmarkMap, method: Method) -> TrackingRun {
+/// Appearance descriptors of every detection of every frame, from the frames
+/// rendered at half resolution (the descriptors are coarse anyway).
+/// `on_frame` reports progress.
+pub fn render_features(scenario: &Scenario, mut on_frame: impl FnMut(u64)) -> Vec<Vec<Vec<f32>>> {
+    let half = PinholeCamera {
+        intrinsics: scenario.camera.intrinsics.scaled(0.5),
+        mount: scenario.camera.mount,
+    };
+    let renderer = Renderer::new(&scenario.world, half, scenario.seed);
+    let mut buffers = renderer.buffers();
+    let conditions = Conditions::default();
+    scenario
+        .frames()
+        .map(|(truth, frame)| {
+            let rates = scenario.flight.attitude_rates(truth.time_s);
+            renderer.render_into(&mut buffers, &truth.pose, &conditions, rates, truth.seq);
+            on_frame(truth.seq);
+            frame
+                .detections
+                .iter()
+                .map(|d| {
+                    let b = PixelBox::new(
+                        d.bbox.left * 0.5,
+                        d.bbox.top * 0.5,
+                        d.bbox.right * 0.5,
+                        d.bbox.bottom * 0.5,
+                    );
+                    describe(&buffers.image, &b).unwrap_or_else(|| vec![0.0; DIM])
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Run `method` over `scenario`. `features` (from `render_features`) feed the
+/// DeepSORT methods, which fall back to IoU without them.
+pub fn run(
+    scenario: &Scenario,
+    map: &LandmarkMap,
+    method: Method,
+    features: Option<&[Vec<Vec<f32>>]>,
+) -> TrackingRun {
     let mut acc = MotAccumulator::default();
     let mut frames = Vec::new();
     let mut tracker: Box<dyn Tracker> = match method {
         Method::ByteTrack => Box::new(ByteTracker::new(ByteParams::default())),
+        Method::DeepSort | Method::DeepSortTimeline => {
+            Box::new(DeepSortTracker::new(DeepSortParams::default()))
+        }
         _ => Box::new(SortTracker::new(SortParams::default())),
     };
+    let mut timeline = TimelineCorrection::new(TimelineParams::default());
     let mut prev_attitude = None;
     let mut pipeline = Pipeline::new(
         PipelineConfig::new(scenario.camera, scenario.start_in_world()),
         map.clone(),
     );
     for (truth, frame) in scenario.frames() {
-        let hyps: Vec<Hypothesis> = match method {
-            Method::Sort | Method::SortCmc | Method::ByteTrack => {
-                let motion = prev_attitude
-                    .filter(|_| method != Method::Sort)
-                    .map(|before| {
-                        CameraMotion::between(&scenario.camera, &before, &frame.imu_attitude)
-                    });
-                prev_attitude = Some(frame.imu_attitude);
-                tracker
-                    .step(&TrackerInput {
-                        time_s: frame.time_s,
-                        detections: &frame.detections,
-                        motion: motion.as_ref(),
-                        features: None,
-                    })
-                    .into_iter()
-                    .map(|t| Hypothesis {
-                        id: t.track_id.to_string(),
-                        bbox: t.bbox,
-                        tower: None,
-                    })
-                    .collect()
-            }
-            Method::Ours => pipeline
+        let hyps: Vec<Hypothesis> = if method == Method::Ours {
+            pipeline
                 .process(&frame)
                 .tracks
                 .into_iter()
@@ -115,7 +161,36 @@ pub fn run(scenario: &Scenario, map: &LandmarkMap, method: Method) -> TrackingRu
                         tower,
                     }
                 })
-                .collect(),
+                .collect()
+        } else {
+            let compensate = !matches!(method, Method::Sort | Method::SortTimeline);
+            let motion = prev_attitude.filter(|_| compensate).map(|before| {
+                CameraMotion::between(&scenario.camera, &before, &frame.imu_attitude)
+            });
+            prev_attitude = Some(frame.imu_attitude);
+            let feats = features
+                .filter(|_| method.needs_features())
+                .and_then(|f| f.get(truth.seq as usize))
+                .map(Vec::as_slice);
+            let outputs = tracker.step(&TrackerInput {
+                time_s: frame.time_s,
+                detections: &frame.detections,
+                motion: motion.as_ref(),
+                features: feats,
+            });
+            let outputs = if matches!(method, Method::SortTimeline | Method::DeepSortTimeline) {
+                timeline.apply(truth.seq, outputs)
+            } else {
+                outputs
+            };
+            outputs
+                .into_iter()
+                .map(|t| Hypothesis {
+                    id: t.track_id.to_string(),
+                    bbox: t.bbox,
+                    tower: None,
+                })
+                .collect()
         };
         let (gt, ignore): (Vec<_>, Vec<_>) =
             truth.boxes.iter().partition(|b| demanded(b, scenario));

@@ -10,7 +10,7 @@ use towernav_sim::world::WorldParams;
 use towernav_sim::{Scenario, World};
 
 use crate::landmarks::LandmarkMap;
-use crate::tracking_eval::{Method, TrackingRun, run};
+use crate::tracking_eval::{Method, TrackingRun, render_features, run};
 
 /// Scenarios: the seed's two paths over its field, and two random fields.
 pub fn cases(seed: u64) -> anyhow::Result<Vec<(String, Scenario)>> {
@@ -43,7 +43,7 @@ pub fn cases(seed: u64) -> anyhow::Result<Vec<(String, Scenario)>> {
 
 /// One MOT-challenge results file: `frame,id,left,top,width,height,conf,-1,-1,-1`.
 /// Identities that are not numbers (tower ids) are numbered in order of appearance.
-fn write_mot(path: &Path, r: &TrackingRun) -> anyhow::Result<()> {
+pub fn write_mot(path: &Path, r: &TrackingRun) -> anyhow::Result<()> {
     let mut file = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
     );
@@ -86,12 +86,16 @@ pub fn write_all(out: &Path, seed: u64) -> anyhow::Result<()> {
             "binding accuracy",
             "bound share",
         ]);
+        let bar = indicatif::ProgressBar::new(scenario.frame_count());
+        bar.set_message(format!("rendering {name} for appearance"));
+        let features = render_features(&scenario, |seq| bar.set_position(seq + 1));
+        bar.finish_and_clear();
         let slug: String = name
             .chars()
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
             .collect();
         for method in Method::ALL {
-            let r = run(&scenario, &map, method);
+            let r = run(&scenario, &map, method, Some(&features));
             let m = r.metrics;
             let binds = method == Method::Ours;
             table.add_row([
