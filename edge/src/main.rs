@@ -39,6 +39,10 @@ enum Command {
         out: PathBuf,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// An ONNX re-identification model ([N, 3, H, W] crops in, [N, D] out) for
+        /// DeepSORT's appearance; default: the Rust crop descriptor.
+        #[arg(long)]
+        reid: Option<PathBuf>,
     },
     /// Reproduce the seed's localization analysis (seed vs ours, tables and PNG plots).
     EvalLocalization {
@@ -98,8 +102,8 @@ fn main() -> anyhow::Result<()> {
     if let Command::EvalLocalization { out, seed } = &cli.command {
         return towernav_edge::shell::loc_eval_cmd::write_all(out, *seed);
     }
-    if let Command::EvalTracking { out, seed } = &cli.command {
-        return towernav_edge::shell::tracking_eval_cmd::write_all(out, *seed);
+    if let Command::EvalTracking { out, seed, reid } = &cli.command {
+        return towernav_edge::shell::tracking_eval_cmd::write_all(out, *seed, reid.as_deref());
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -1,6 +1,7 @@
 //! Tracking and identity evaluation (pure): run a tracker (or the whole
 //! pipeline, for ours) over a scenario and score it with `mot_metrics`.
 
+use image::RgbImage;
 use towernav_geometry::{PinholeCamera, PixelBox};
 use towernav_sim::{Conditions, Renderer, Scenario};
 
@@ -88,10 +89,26 @@ pub fn demanded(b: &towernav_sim::TruthBox, scenario: &Scenario) -> bool {
     b.bbox.height() >= 2.0 * scenario.oracle.min_height_px && b.occluded < 0.75
 }
 
+/// Turns one rendered frame's boxes into appearance descriptors.
+pub type Describer<'a> = dyn FnMut(&RgbImage, &[PixelBox]) -> Vec<Vec<f32>> + 'a;
+
+/// The Rust crop descriptor for each box of a frame.
+pub fn describe_all(image: &RgbImage, boxes: &[PixelBox]) -> Vec<Vec<f32>> {
+    boxes
+        .iter()
+        .map(|b| describe(image, b).unwrap_or_else(|| vec![0.0; DIM]))
+        .collect()
+}
+
 /// Appearance descriptors of every detection of every frame, from the frames
-/// rendered at half resolution (the descriptors are coarse anyway).
+/// rendered at half resolution; `describe` turns a frame's boxes into
+/// descriptors (`describe_all`, or a re-identification model in the shell).
 /// `on_frame` reports progress.
-pub fn render_features(scenario: &Scenario, mut on_frame: impl FnMut(u64)) -> Vec<Vec<Vec<f32>>> {
+pub fn render_features(
+    scenario: &Scenario,
+    describe: &mut Describer<'_>,
+    mut on_frame: impl FnMut(u64),
+) -> Vec<Vec<Vec<f32>>> {
     let half = PinholeCamera {
         intrinsics: scenario.camera.intrinsics.scaled(0.5),
         mount: scenario.camera.mount,
@@ -105,19 +122,19 @@ pub fn render_features(scenario: &Scenario, mut on_frame: impl FnMut(u64)) -> Ve
             let rates = scenario.flight.attitude_rates(truth.time_s);
             renderer.render_into(&mut buffers, &truth.pose, &conditions, rates, truth.seq);
             on_frame(truth.seq);
-            frame
+            let boxes: Vec<PixelBox> = frame
                 .detections
                 .iter()
                 .map(|d| {
-                    let b = PixelBox::new(
+                    PixelBox::new(
                         d.bbox.left * 0.5,
                         d.bbox.top * 0.5,
                         d.bbox.right * 0.5,
                         d.bbox.bottom * 0.5,
-                    );
-                    describe(&buffers.image, &b).unwrap_or_else(|| vec![0.0; DIM])
+                    )
                 })
-                .collect()
+                .collect();
+            describe(&buffers.image, &boxes)
         })
         .collect()
 }

@@ -27,7 +27,12 @@ enum Task {
     Gs,
     /// Formatting, lints and every test: what CI runs.
     Test,
+    /// Install ONNX Runtime's shared library into .ort/ (from the onnxruntime wheel on PyPI).
+    SetupOrt,
 }
+
+/// The ONNX Runtime release whose C API the `ort` crate's `api-31` feature speaks.
+const ONNXRUNTIME_VERSION: &str = "1.31.1";
 
 fn main() -> anyhow::Result<()> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -38,7 +43,46 @@ fn main() -> anyhow::Result<()> {
         Task::Demo { speed, seed } => demo(&root, speed, seed),
         Task::Gs => ground_station(&root),
         Task::Test => test(&root),
+        Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
     }
+}
+
+/// `.ort/lib/libonnxruntime.so` under the workspace, fetched once from the
+/// `onnxruntime` wheel on the Python package index (pip, no other network).
+fn ensure_onnxruntime(root: &Path) -> anyhow::Result<PathBuf> {
+    let lib = root.join(".ort").join("lib").join("libonnxruntime.so");
+    if lib.exists() {
+        return Ok(lib);
+    }
+    let wheels = root.join(".ort").join("wheel");
+    std::fs::create_dir_all(lib.parent().context("lib has a parent")?)?;
+    run(Command::new("python3")
+        .args([
+            "-m",
+            "pip",
+            "download",
+            "--quiet",
+            "--no-deps",
+            "--only-binary=:all:",
+            &format!("onnxruntime=={ONNXRUNTIME_VERSION}"),
+            "-d",
+        ])
+        .arg(&wheels))?;
+    // Unpack only the shared library from the wheel (a zip).
+    let script = "import sys, zipfile, glob, shutil\n\
+        wheel = glob.glob(sys.argv[1] + '/onnxruntime-*.whl')[0]\n\
+        z = zipfile.ZipFile(wheel)\n\
+        name = [n for n in z.namelist() if '/capi/libonnxruntime.so' in n][0]\n\
+        with z.open(name) as src, open(sys.argv[2], 'wb') as dst: shutil.copyfileobj(src, dst)\n";
+    run(Command::new("python3")
+        .args(["-c", script])
+        .arg(&wheels)
+        .arg(&lib))?;
+    eprintln!(
+        "xtask: ONNX Runtime {ONNXRUNTIME_VERSION} at {}",
+        lib.display()
+    );
+    Ok(lib)
 }
 
 fn target_dir(root: &Path) -> PathBuf {
@@ -150,5 +194,11 @@ fn test(root: &Path) -> anyhow::Result<()> {
             "warnings",
         ],
     )?;
-    cargo(root, &["test", "--workspace"])
+    let ort = ensure_onnxruntime(root)?;
+    run(
+        Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+            .args(["test", "--workspace"])
+            .env("ORT_DYLIB_PATH", ort)
+            .current_dir(root),
+    )
 }

@@ -7,6 +7,7 @@ pub mod landmarks_source;
 pub mod loc_eval_cmd;
 pub mod loc_plots;
 pub mod node;
+pub mod onnx;
 pub mod sim_flight;
 pub mod tracking_eval_cmd;
 

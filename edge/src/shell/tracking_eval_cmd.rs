@@ -10,7 +10,8 @@ use towernav_sim::world::WorldParams;
 use towernav_sim::{Scenario, World};
 
 use crate::landmarks::LandmarkMap;
-use crate::tracking_eval::{Method, TrackingRun, render_features, run};
+use crate::shell::onnx::{OnnxError, ReidModel};
+use crate::tracking_eval::{Method, TrackingRun, describe_all, render_features, run};
 
 /// Scenarios: the seed's two paths over its field, and two random fields.
 pub fn cases(seed: u64) -> anyhow::Result<Vec<(String, Scenario)>> {
@@ -69,8 +70,12 @@ pub fn write_mot(path: &Path, r: &TrackingRun) -> anyhow::Result<()> {
     Ok(())
 }
 
-pub fn write_all(out: &Path, seed: u64) -> anyhow::Result<()> {
+/// `reid`: an ONNX re-identification model for DeepSORT's appearance instead
+/// of the Rust crop descriptor.
+pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let mut model = reid.map(|p| ReidModel::load(p, 2)).transpose()?;
+    let mut failure: Option<OnnxError> = None;
     for (name, scenario) in cases(seed)? {
         let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
         let mut table = Table::new();
@@ -88,8 +93,19 @@ pub fn write_all(out: &Path, seed: u64) -> anyhow::Result<()> {
         ]);
         let bar = indicatif::ProgressBar::new(scenario.frame_count());
         bar.set_message(format!("rendering {name} for appearance"));
-        let features = render_features(&scenario, |seq| bar.set_position(seq + 1));
+        let mut describe =
+            |image: &image::RgbImage, boxes: &[towernav_geometry::PixelBox]| match &mut model {
+                Some(m) => m.embed(image, boxes).unwrap_or_else(|e| {
+                    failure.get_or_insert(e);
+                    describe_all(image, boxes)
+                }),
+                None => describe_all(image, boxes),
+            };
+        let features = render_features(&scenario, &mut describe, |seq| bar.set_position(seq + 1));
         bar.finish_and_clear();
+        if let Some(e) = failure.take() {
+            return Err(e.into());
+        }
         let slug: String = name
             .chars()
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })

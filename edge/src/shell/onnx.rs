@@ -1,0 +1,199 @@
+//! ONNX Runtime, loaded at run time: where its shared library is, one
+//! process-wide environment, and the re-identification model that can give
+//! DeepSORT its appearance descriptors.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use image::RgbImage;
+use image::imageops::FilterType;
+use ort::environment::Environment;
+use ort::session::Session;
+use ort::value::Tensor;
+use towernav_geometry::PixelBox;
+
+#[derive(Debug, thiserror::Error)]
+pub enum OnnxError {
+    #[error(
+        "no ONNX Runtime library found (looked in: {}); run `cargo xtask setup-ort` to install it \
+         into .ort/lib, or set ORT_DYLIB_PATH to a libonnxruntime.so",
+        searched.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+    )]
+    NoLibrary { searched: Vec<PathBuf> },
+    #[error("loading ONNX Runtime from {path}: {reason}")]
+    Load { path: PathBuf, reason: String },
+    #[error("model {path}: {reason}")]
+    Model { path: PathBuf, reason: String },
+    #[error("running model {path}: {reason}")]
+    Run { path: PathBuf, reason: String },
+}
+
+/// `ORT_DYLIB_PATH` if set, else `.ort/lib/libonnxruntime.so` in the current
+/// folder or any folder above it (the project's setup puts it there).
+pub fn locate_runtime() -> Result<PathBuf, OnnxError> {
+    let cwd = std::env::current_dir().unwrap_or_default();
+    locate_runtime_from(std::env::var_os("ORT_DYLIB_PATH").map(PathBuf::from), &cwd)
+}
+
+/// `locate_runtime` with the variable's value and the starting folder given.
+pub fn locate_runtime_from(
+    dylib_path: Option<PathBuf>,
+    start: &Path,
+) -> Result<PathBuf, OnnxError> {
+    let mut searched = Vec::new();
+    if let Some(p) = dylib_path {
+        if p.is_file() {
+            return Ok(p);
+        }
+        searched.push(p);
+    }
+    for dir in start.ancestors() {
+        let p = dir.join(".ort").join("lib").join("libonnxruntime.so");
+        if p.is_file() {
+            return Ok(p);
+        }
+        searched.push(p);
+    }
+    Err(OnnxError::NoLibrary { searched })
+}
+
+/// ONNX Runtime allows one environment per process: it lives here.
+static RUNTIME: OnceLock<Result<(PathBuf, Environment), String>> = OnceLock::new();
+
+/// Load ONNX Runtime once per process; later calls return the first outcome.
+pub fn init_runtime() -> Result<&'static Environment, OnnxError> {
+    let outcome = RUNTIME.get_or_init(|| {
+        let path = locate_runtime().map_err(|e| e.to_string())?;
+        let env = ort::init_from(&path)
+            .map_err(|e| format!("loading ONNX Runtime from {}: {e}", path.display()))?
+            .with_name("towernav")
+            .build()
+            .map_err(|e| format!("starting ONNX Runtime from {}: {e}", path.display()))?;
+        Ok((path, env))
+    });
+    match outcome {
+        Ok((_, env)) => Ok(env),
+        Err(reason) => Err(OnnxError::Load {
+            path: std::env::var_os("ORT_DYLIB_PATH")
+                .map(PathBuf::from)
+                .unwrap_or_default(),
+            reason: reason.clone(),
+        }),
+    }
+}
+
+/// A re-identification model: crops [N, 3, H, W] (RGB in 0..1) in, one
+/// embedding per crop out, L2-normalised here for cosine distance.
+pub struct ReidModel {
+    session: Session,
+    path: PathBuf,
+    input: String,
+    height: u32,
+    width: u32,
+}
+
+impl ReidModel {
+    pub fn load(path: &Path, threads: usize) -> Result<Self, OnnxError> {
+        let env = init_runtime()?;
+        let bad = |reason: String| OnnxError::Model {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read it: {e}")))?;
+        let session = Session::builder(env)
+            .map_err(|e| bad(e.to_string()))?
+            .with_intra_threads(threads.max(1))
+            .map_err(|e| bad(e.to_string()))?
+            .commit_from_memory(&bytes)
+            .map_err(|e| bad(format!("not a loadable ONNX model: {e}")))?;
+        let input = session
+            .inputs()
+            .first()
+            .ok_or_else(|| bad("it has no inputs".into()))?;
+        let dims: Vec<i64> = input
+            .dtype()
+            .tensor_shape()
+            .map(|s| s.iter().copied().collect())
+            .ok_or_else(|| bad("its input is not a tensor".into()))?;
+        let (height, width) = match dims.as_slice() {
+            [_, 3, h, w] if *h > 0 && *w > 0 => (*h as u32, *w as u32),
+            other => {
+                return Err(bad(format!(
+                    "expected an input of shape [N, 3, H, W] with fixed H and W, found {other:?}"
+                )));
+            }
+        };
+        if session.outputs().len() != 1 {
+            return Err(bad(format!(
+                "expected one output (the embedding), found {}",
+                session.outputs().len()
+            )));
+        }
+        Ok(Self {
+            input: input.name().to_string(),
+            session,
+            path: path.to_path_buf(),
+            height,
+            width,
+        })
+    }
+
+    /// One normalised embedding per box (boxes are clipped to the image).
+    pub fn embed(
+        &mut self,
+        image: &RgbImage,
+        boxes: &[PixelBox],
+    ) -> Result<Vec<Vec<f32>>, OnnxError> {
+        if boxes.is_empty() {
+            return Ok(Vec::new());
+        }
+        let (h, w) = (self.height as usize, self.width as usize);
+        let mut data = vec![0f32; boxes.len() * 3 * h * w];
+        for (n, b) in boxes.iter().enumerate() {
+            let c = b.clipped(f64::from(image.width()), f64::from(image.height()));
+            let (x0, y0) = (c.left as u32, c.top as u32);
+            let cw =
+                ((c.width().ceil() as u32).max(1)).min(image.width().saturating_sub(x0).max(1));
+            let ch =
+                ((c.height().ceil() as u32).max(1)).min(image.height().saturating_sub(y0).max(1));
+            let crop = image::imageops::crop_imm(image, x0, y0, cw, ch).to_image();
+            let resized =
+                image::imageops::resize(&crop, self.width, self.height, FilterType::Triangle);
+            for (x, y, p) in resized.enumerate_pixels() {
+                for ch_i in 0..3 {
+                    data[((n * 3 + ch_i) * h + y as usize) * w + x as usize] =
+                        f32::from(p[ch_i]) / 255.0;
+                }
+            }
+        }
+        let fail = |reason: String| OnnxError::Run {
+            path: self.path.clone(),
+            reason,
+        };
+        let tensor =
+            Tensor::from_array(([boxes.len(), 3, h, w], data)).map_err(|e| fail(e.to_string()))?;
+        let outputs = self
+            .session
+            .run(ort::inputs![self.input.as_str() => tensor])
+            .map_err(|e| fail(e.to_string()))?;
+        let (shape, values) = outputs[0]
+            .try_extract_tensor::<f32>()
+            .map_err(|e| fail(format!("output is not float32: {e}")))?;
+        let dim = match &**shape {
+            [n, d] if *n as usize == boxes.len() && *d > 0 => *d as usize,
+            other => return Err(fail(format!("expected output [N, D], got {other:?}"))),
+        };
+        Ok(values
+            .chunks(dim)
+            .map(|v| {
+                let norm = v
+                    .iter()
+                    .map(|x| x * x)
+                    .sum::<f32>()
+                    .sqrt()
+                    .max(f32::EPSILON);
+                v.iter().map(|x| x / norm).collect()
+            })
+            .collect())
+    }
+}
