@@ -138,9 +138,10 @@ pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<(
             write_mot(&file, &r)?;
         }
         println!(
-            "{name} ({} towers, {} frames, oracle detector):\n{table}\n",
+            "{name} ({} towers, {} frames, oracle detector; DeepSORT appearance: {}):\n{table}\n",
             scenario.world.towers.len(),
-            scenario.frame_count()
+            scenario.frame_count(),
+            reid.map_or("Rust crop descriptor".to_string(), |p| p.display().to_string())
         );
     }
     println!("MOT-challenge results in {}", out.display());
