@@ -141,7 +141,9 @@ pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<(
             "{name} ({} towers, {} frames, oracle detector; DeepSORT appearance: {}):\n{table}\n",
             scenario.world.towers.len(),
             scenario.frame_count(),
-            reid.map_or("Rust crop descriptor".to_string(), |p| p.display().to_string())
+            reid.map_or("Rust crop descriptor".to_string(), |p| p
+                .display()
+                .to_string())
         );
     }
     println!("MOT-challenge results in {}", out.display());
