@@ -11,10 +11,10 @@ use towernav_sim::Scenario;
 
 use crate::landmarks::LandmarkMap;
 use crate::localizer::{Observation, single_tower_position};
-use crate::mot_metrics::{Hypothesis, MotAccumulator};
+use crate::mot_metrics::MotAccumulator;
 use crate::pipeline::{BoundBox, FrameOutput, Pipeline, PipelineConfig};
 use crate::sim_eval::{ErrorStats, error_stats};
-use crate::tracking_eval::demanded;
+use crate::tracking_eval::{add_frame, pipeline_hypotheses};
 
 /// Per frame: truth and what each method said.
 #[derive(Debug, Clone, PartialEq)]
@@ -147,20 +147,12 @@ pub fn run(
             observed = bound.len();
             corrupted = corrupt(bound, outlier_share, map.towers.len(), &mut rng, size);
         });
-        let (gt, ignore): (Vec<_>, Vec<_>) =
-            truth.boxes.iter().partition(|b| demanded(b, scenario));
-        let gt: Vec<(String, _)> = gt.iter().map(|b| (b.tower_id.clone(), b.bbox)).collect();
-        let ignore: Vec<_> = ignore.iter().map(|b| b.bbox).collect();
-        let hyps: Vec<Hypothesis> = out
-            .tracks
-            .iter()
-            .map(|t| Hypothesis {
-                id: t.track_id.to_string(),
-                bbox: t.bbox,
-                tower: t.tower.map(|i| map.towers[i].id.clone()),
-            })
-            .collect();
-        identity.add_frame(&gt, &ignore, &hyps);
+        add_frame(
+            &mut identity,
+            scenario,
+            &truth,
+            &pipeline_hypotheses(&out, map),
+        );
         run.observations += observed;
         run.corrupted += corrupted;
         let p = truth.pose.position_in_world;

@@ -17,8 +17,10 @@ pub struct FlightReport {
     pub poses_received: usize,
     /// Horizontal error of the poses that arrived, against truth at their frame.
     pub horizontal: ErrorStats,
-    pub frames_with_tracks: usize,
-    pub binding_share: f64,
+    /// Of track-frames bound to a tower, the share bound to the right one.
+    pub binding_accuracy: f64,
+    /// Of track-frames on a tower the tracker must cover, the share bound.
+    pub bound_share: f64,
 }
 
 impl FlightReport {
@@ -30,7 +32,7 @@ impl FlightReport {
                 Some(((p.east_m - e).powi(2) + (p.north_m - n).powi(2)).sqrt())
             })
             .collect();
-        let right = record.binding_right.iter().filter(|r| **r).count();
+        let identity = record.identity.finish();
         let rate = |secs: f64| {
             if secs > 0.0 {
                 record.frames as f64 / secs
@@ -46,12 +48,8 @@ impl FlightReport {
             poses_published: record.poses_published,
             poses_received: received.len(),
             horizontal: error_stats(&errors),
-            frames_with_tracks: record.binding_right.len(),
-            binding_share: if record.binding_right.is_empty() {
-                0.0
-            } else {
-                right as f64 / record.binding_right.len() as f64
-            },
+            binding_accuracy: identity.binding_accuracy,
+            bound_share: identity.binding_coverage,
         }
     }
 }
@@ -81,9 +79,9 @@ impl fmt::Display for FlightReport {
         )?;
         write!(
             f,
-            "tower identity     {:.1} % of {} frames with tracks had every track bound to its true tower",
-            100.0 * self.binding_share,
-            self.frames_with_tracks
+            "tower identity     {:.2} % of bound track-frames on their true tower; {:.1} % of track-frames bound",
+            100.0 * self.binding_accuracy,
+            100.0 * self.bound_share
         )
     }
 }

@@ -1,32 +1,5 @@
 //! Scoring a run against the simulator's truth (pure).
 
-use towernav_sim::FrameTruth;
-
-use crate::landmarks::LandmarkMap;
-use crate::mot_metrics::{MATCH_IOU, overlap};
-use crate::pipeline::FrameOutput;
-
-/// Whether every reported track is bound to its true tower. A track that overlaps
-/// no true box (a false positive) must be unbound. `None` for a frame with no tracks.
-pub fn all_bound_right(truth: &FrameTruth, out: &FrameOutput, map: &LandmarkMap) -> Option<bool> {
-    if out.tracks.is_empty() {
-        return None;
-    }
-    Some(out.tracks.iter().all(|t| {
-        let best = truth
-            .boxes
-            .iter()
-            .map(|b| (overlap(&b.bbox, &t.bbox), b))
-            .filter(|(iou, _)| *iou >= MATCH_IOU)
-            .max_by(|a, b| a.0.total_cmp(&b.0));
-        let bound = t.tower.map(|i| map.towers[i].id.as_str());
-        match best {
-            Some((_, b)) => bound == Some(b.tower_id.as_str()),
-            None => bound.is_none(),
-        }
-    }))
-}
-
 /// Horizontal error statistics, metres.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ErrorStats {

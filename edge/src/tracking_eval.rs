@@ -3,11 +3,11 @@
 
 use image::RgbImage;
 use towernav_geometry::{PinholeCamera, PixelBox};
-use towernav_sim::{Conditions, Renderer, Scenario};
+use towernav_sim::{Conditions, FrameTruth, Renderer, Scenario};
 
 use crate::landmarks::LandmarkMap;
 use crate::mot_metrics::{Hypothesis, MotAccumulator, MotMetrics};
-use crate::pipeline::{Pipeline, PipelineConfig};
+use crate::pipeline::{FrameOutput, Pipeline, PipelineConfig};
 use crate::tracker::appearance::{DIM, describe};
 use crate::tracker::{
     ByteParams, ByteTracker, CameraMotion, DeepSortParams, DeepSortTracker, SortParams,
@@ -89,6 +89,36 @@ pub fn demanded(b: &towernav_sim::TruthBox, scenario: &Scenario) -> bool {
     b.bbox.height() >= 2.0 * scenario.oracle.min_height_px && b.occluded < 0.75
 }
 
+/// Score one frame's hypotheses against its truth (demanded boxes; the rest "don't care").
+pub fn add_frame(
+    acc: &mut MotAccumulator,
+    scenario: &Scenario,
+    truth: &FrameTruth,
+    hyps: &[Hypothesis],
+) {
+    let (gt, ignore): (Vec<_>, Vec<_>) = truth.boxes.iter().partition(|b| demanded(b, scenario));
+    let gt: Vec<(String, _)> = gt.iter().map(|b| (b.tower_id.clone(), b.bbox)).collect();
+    let ignore: Vec<_> = ignore.iter().map(|b| b.bbox).collect();
+    acc.add_frame(&gt, &ignore, hyps);
+}
+
+/// Ours, as hypotheses: a bound track is named by its tower, an unbound one by its track.
+pub fn pipeline_hypotheses(out: &FrameOutput, map: &LandmarkMap) -> Vec<Hypothesis> {
+    out.tracks
+        .iter()
+        .map(|t| {
+            let tower = t.tower.map(|i| map.towers[i].id.clone());
+            Hypothesis {
+                id: tower
+                    .clone()
+                    .unwrap_or_else(|| format!("track-{}", t.track_id)),
+                bbox: t.bbox,
+                tower,
+            }
+        })
+        .collect()
+}
+
 /// Turns one rendered frame's boxes into appearance descriptors.
 pub type Describer<'a> = dyn FnMut(&RgbImage, &[PixelBox]) -> Vec<Vec<f32>> + 'a;
 
@@ -164,21 +194,7 @@ pub fn run(
     );
     for (truth, frame) in scenario.frames() {
         let hyps: Vec<Hypothesis> = if method == Method::Ours {
-            pipeline
-                .process(&frame)
-                .tracks
-                .into_iter()
-                .map(|t| {
-                    let tower = t.tower.map(|i| map.towers[i].id.clone());
-                    Hypothesis {
-                        id: tower
-                            .clone()
-                            .unwrap_or_else(|| format!("track-{}", t.track_id)),
-                        bbox: t.bbox,
-                        tower,
-                    }
-                })
-                .collect()
+            pipeline_hypotheses(&pipeline.process(&frame), map)
         } else {
             let compensate = !matches!(method, Method::Sort | Method::SortTimeline);
             let motion = prev_attitude.filter(|_| compensate).map(|before| {
@@ -209,11 +225,7 @@ pub fn run(
                 })
                 .collect()
         };
-        let (gt, ignore): (Vec<_>, Vec<_>) =
-            truth.boxes.iter().partition(|b| demanded(b, scenario));
-        let gt: Vec<(String, _)> = gt.iter().map(|b| (b.tower_id.clone(), b.bbox)).collect();
-        let ignore: Vec<_> = ignore.iter().map(|b| b.bbox).collect();
-        acc.add_frame(&gt, &ignore, &hyps);
+        add_frame(&mut acc, scenario, &truth, &hyps);
         frames.push((truth.seq, hyps));
     }
     TrackingRun {

@@ -11,8 +11,9 @@ use super::landmark_sync::LandmarkSync;
 use super::node::EdgeNode;
 use crate::landmarks::LandmarkMap;
 use crate::localizer::Method;
+use crate::mot_metrics::MotAccumulator;
 use crate::pipeline::{Pipeline, PipelineConfig};
-use crate::sim_eval::all_bound_right;
+use crate::tracking_eval::{add_frame, pipeline_hypotheses};
 use crate::wire::{pose_estimate, pose_method, track_report};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,8 +49,8 @@ pub struct FlightRecord {
     /// Seconds spent in the pure pipeline, summed.
     pub core_seconds: f64,
     pub wall_seconds: f64,
-    /// Per frame with tracks: whether every track was bound to its true tower.
-    pub binding_right: Vec<bool>,
+    /// Tower identities scored against truth (binding accuracy, bound share).
+    pub identity: MotAccumulator,
     /// True horizontal position per frame, for scoring received poses by `seq`.
     pub truth_en: Vec<(f64, f64)>,
 }
@@ -121,9 +122,12 @@ pub async fn fly(
         }
         node.publish_tracks(&track_report(node.uav(), &out, pipeline.map()))
             .await?;
-        if let Some(right) = all_bound_right(&truth, &out, pipeline.map()) {
-            record.binding_right.push(right);
-        }
+        add_frame(
+            &mut record.identity,
+            scenario,
+            &truth,
+            &pipeline_hypotheses(&out, pipeline.map()),
+        );
         let p = truth.pose.position_in_world;
         record.truth_en.push((p.x, p.y));
         record.frames += 1;
