@@ -1,0 +1,193 @@
+//! Decoding Ultralytics YOLO outputs: YOLOv5 `[1, N, 5 + C]` (box, objectness,
+//! class scores) and YOLOv8/11 `[1, 4 + C, N]` (box, class scores), told apart
+//! by shape; then class-aware non-maximum suppression. Boxes are centre-size in
+//! model-input pixels.
+
+use towernav_geometry::PixelBox;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    /// `[1, N, 5 + C]`.
+    V5,
+    /// `[1, 4 + C, N]`.
+    V8,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LayoutError {
+    #[error(
+        "output shape {shape:?} fits neither YOLOv5 [1, N, 5 + {classes}] nor YOLOv8 [1, 4 + {classes}, N] for {classes} classes"
+    )]
+    Unknown { shape: Vec<usize>, classes: usize },
+}
+
+/// Which layout an output of `shape` has for `classes` classes.
+pub fn layout(shape: &[usize], classes: usize) -> Result<Layout, LayoutError> {
+    match shape {
+        [1, a, b] if *b == 5 + classes && *a != 4 + classes => Ok(Layout::V5),
+        [1, a, _] if *a == 4 + classes => Ok(Layout::V8),
+        _ => Err(LayoutError::Unknown {
+            shape: shape.to_vec(),
+            classes,
+        }),
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RawDetection {
+    pub bbox: PixelBox,
+    pub class: usize,
+    pub score: f32,
+}
+
+/// Candidates above `min_score` from a raw output (row-major `data` of `shape`).
+pub fn decode(
+    data: &[f32],
+    shape: &[usize],
+    classes: usize,
+    min_score: f32,
+) -> Result<Vec<RawDetection>, LayoutError> {
+    let kind = layout(shape, classes)?;
+    let mut out = Vec::new();
+    let cxcywh = |cx: f32, cy: f32, w: f32, h: f32| {
+        PixelBox::new(
+            f64::from(cx - w / 2.0),
+            f64::from(cy - h / 2.0),
+            f64::from(cx + w / 2.0),
+            f64::from(cy + h / 2.0),
+        )
+    };
+    match kind {
+        Layout::V5 => {
+            let stride = 5 + classes;
+            for row in data.chunks_exact(stride) {
+                let objectness = row[4];
+                if objectness < min_score {
+                    continue;
+                }
+                let (class, best) = best_class(row[5..].iter().copied());
+                let score = objectness * best;
+                if score >= min_score {
+                    out.push(RawDetection {
+                        bbox: cxcywh(row[0], row[1], row[2], row[3]),
+                        class,
+                        score,
+                    });
+                }
+            }
+        }
+        Layout::V8 => {
+            let n = shape[2];
+            let at = |r: usize, i: usize| data[r * n + i];
+            for i in 0..n {
+                let (class, score) = best_class((0..classes).map(|c| at(4 + c, i)));
+                if score >= min_score {
+                    out.push(RawDetection {
+                        bbox: cxcywh(at(0, i), at(1, i), at(2, i), at(3, i)),
+                        class,
+                        score,
+                    });
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn best_class(scores: impl Iterator<Item = f32>) -> (usize, f32) {
+    scores
+        .enumerate()
+        .fold((0, f32::NEG_INFINITY), |best, (i, s)| {
+            if s > best.1 { (i, s) } else { best }
+        })
+}
+
+/// Class-aware NMS: within a class, keep the best box and drop any other that
+/// overlaps it by more than `iou_max`; highest scores first.
+pub fn nms(mut dets: Vec<RawDetection>, iou_max: f64) -> Vec<RawDetection> {
+    dets.sort_by(|a, b| b.score.total_cmp(&a.score));
+    let mut kept: Vec<RawDetection> = Vec::with_capacity(dets.len());
+    for d in dets {
+        if kept
+            .iter()
+            .all(|k| k.class != d.class || k.bbox.iou(&d.bbox) <= iou_max)
+        {
+            kept.push(d);
+        }
+    }
+    kept
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn v5_output_decodes_with_objectness_times_class_score() {
+        // Two candidates, 4 classes: [cx, cy, w, h, obj, c0..c3].
+        let data = [
+            100.0, 200.0, 20.0, 80.0, 0.9, 0.1, 0.8, 0.05, 0.05, //
+            300.0, 200.0, 20.0, 80.0, 0.2, 0.9, 0.0, 0.0, 0.0,
+        ];
+        let dets = decode(&data, &[1, 2, 9], 4, 0.25).expect("v5");
+        assert_eq!(dets.len(), 1, "0.2 x 0.9 is under the threshold");
+        assert_eq!(dets[0].class, 1);
+        assert!((dets[0].score - 0.72).abs() < 1e-6);
+        assert_eq!(dets[0].bbox, PixelBox::new(90.0, 160.0, 110.0, 240.0));
+    }
+
+    #[test]
+    fn v8_output_is_channel_major_without_objectness() {
+        // 3 candidates, 4 classes: rows cx, cy, w, h, c0..c3.
+        let data = [
+            100.0, 300.0, 500.0, // cx
+            200.0, 200.0, 200.0, // cy
+            20.0, 20.0, 20.0, // w
+            80.0, 80.0, 80.0, // h
+            0.1, 0.0, 0.0, // A
+            0.0, 0.0, 0.7, // B
+            0.9, 0.1, 0.0, // C
+            0.0, 0.2, 0.0, // D
+        ];
+        let dets = decode(&data, &[1, 8, 3], 4, 0.25).expect("v8");
+        assert_eq!(dets.iter().map(|d| d.class).collect::<Vec<_>>(), [2, 1]);
+        assert_eq!(dets[1].bbox.center_x(), 500.0);
+    }
+
+    #[test]
+    fn unknown_layouts_are_refused_with_the_shape() {
+        let err = layout(&[1, 84, 8400], 4)
+            .expect_err("80-class COCO model")
+            .to_string();
+        assert!(
+            err.contains("[1, 84, 8400]") && err.contains("4 classes"),
+            "{err}"
+        );
+        assert_eq!(layout(&[1, 25200, 9], 4), Ok(Layout::V5));
+        assert_eq!(layout(&[1, 8, 8400], 4), Ok(Layout::V8));
+    }
+
+    #[test]
+    fn nms_is_per_class() {
+        let d = |x: f64, class: usize, score: f32| RawDetection {
+            bbox: PixelBox::new(x, 0.0, x + 20.0, 80.0),
+            class,
+            score,
+        };
+        let kept = nms(
+            vec![
+                d(0.0, 0, 0.9),
+                d(2.0, 0, 0.8),
+                d(2.0, 1, 0.7),
+                d(100.0, 0, 0.6),
+            ],
+            0.5,
+        );
+        assert_eq!(
+            kept.len(),
+            3,
+            "the overlapping same-class box goes, the other class stays"
+        );
+        assert!(kept.iter().all(|k| k.score != 0.8));
+    }
+}
