@@ -155,7 +155,8 @@ impl Identity {
     }
 
     /// Binds this frame's tracks; returns each track's tower index, in order.
-    /// `candidates` (towers near the pose guess) is asked only when some track is unbound.
+    /// `candidates` (towers near the pose guess) is asked at most once, and only when a
+    /// track is unbound or the guess is trusted enough to check bindings.
     /// With `guess_trusted` (the filter is tracking), bindings that keep
     /// disagreeing with the guess are released.
     #[allow(clippy::too_many_arguments)]
@@ -183,25 +184,20 @@ impl Identity {
             let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
             Some((0.5 * (foot.x + top.x), foot.y - top.y, foot.y))
         };
-        // Towers near the guess, asked for at most once per frame.
-        let mut nearby: Option<Vec<usize>> = None;
-        let mut candidates = Some(candidates);
-        let mut nearby_towers = |nearby: &mut Option<Vec<usize>>| -> Vec<usize> {
-            nearby
-                .get_or_insert_with(|| candidates.take().map(|f| f()).unwrap_or_default())
-                .clone()
-        };
+        // Towers near the guess, asked for once, and only when some track needs
+        // them: to bind it, or (with a trusted guess) to check its binding.
+        let unpinned = |t: &&TrackOutput| !self.pinned.contains_key(&t.track_id);
+        let needed = tracks
+            .iter()
+            .filter(unpinned)
+            .any(|t| guess_trusted || !self.bindings.contains_key(&t.track_id));
+        let near: Vec<usize> = if needed { candidates() } else { Vec::new() };
         if guess_trusted {
             let bound_here: Vec<(&TrackOutput, usize)> = tracks
                 .iter()
                 .filter(|t| !self.pinned.contains_key(&t.track_id))
                 .filter_map(|t| self.bindings.get(&t.track_id).map(|&b| (t, b)))
                 .collect();
-            let near = if bound_here.is_empty() {
-                Vec::new()
-            } else {
-                nearby_towers(&mut nearby)
-            };
             // Predict each nearby tower once, not once per track.
             let near_pred: Vec<(usize, (f64, f64, f64))> = near
                 .iter()
@@ -247,8 +243,9 @@ impl Identity {
             .collect();
         if !unbound.is_empty() {
             let taken: Vec<usize> = self.bindings.values().copied().collect();
-            let free: Vec<usize> = nearby_towers(&mut nearby)
-                .into_iter()
+            let free: Vec<usize> = near
+                .iter()
+                .copied()
                 .filter(|i| !taken.contains(i))
                 .collect();
             let predicted: Vec<Option<(f64, f64, f64)>> =

@@ -120,7 +120,7 @@ impl Pipeline {
 
     /// An operator's correction: bind `track_id` to the tower `tower_id` (or to none).
     pub fn pin(&mut self, track_id: u64, tower_id: Option<&str>) -> Result<(), String> {
-        if !self.tracker.live_ids().any(|id| id == track_id) {
+        if !self.tracker.live_ids().contains(&track_id) {
             return Err(format!("track {track_id} is not live"));
         }
         let tower = match tower_id {
@@ -163,7 +163,7 @@ impl Pipeline {
             motion: motion.as_ref(),
             features: None,
         });
-        let live: Vec<u64> = self.tracker.live_ids().collect();
+        let live = self.tracker.live_ids();
         let predicted = self.predicted_position(frame.time_s);
         let guess = Pose {
             position_in_world: predicted.unwrap_or(self.config.takeoff_in_world),

@@ -14,7 +14,7 @@ use super::{Fix, LocalizerParams, Observation};
 /// residuals exceed this is taken to be the wrong tower or a false box.
 const GATE: [f64; 4] = [0.0, 10.83, 13.82, 16.27];
 /// At most this many towers seed start hypotheses (the tallest boxes).
-const MAX_STARTS: usize = 8;
+const MAX_STARTS: usize = 4;
 const MAX_ITERATIONS: usize = 15;
 /// Measured numbers needed for the three position unknowns.
 const MIN_ROWS: usize = 3;
@@ -182,9 +182,16 @@ fn cauchy_weight(n: f64, k: f64) -> f64 {
     1.0 / (1.0 + (n / k).powi(2))
 }
 
-/// The robust cost the solver minimises: Cauchy over every active residual plus the yaw prior.
-#[allow(clippy::too_many_arguments)]
-fn robust_cost(
+/// The robust cost the solver minimises (Cauchy over every active residual plus
+/// the yaw prior) and its IRLS normal equations, in one pass over the towers.
+/// The cost is infinite when a tower falls behind the camera at this state.
+struct Linearized {
+    cost: f64,
+    h: Matrix4<f64>,
+    g: Vector4<f64>,
+}
+
+fn linearize(
     cands: &[Candidate<'_, '_>],
     frame: &FrameCamera,
     position: &Point3<f64>,
@@ -192,18 +199,31 @@ fn robust_cost(
     imu_yaw: f64,
     params: &LocalizerParams,
     scratch: &mut Vec<Residual>,
-) -> f64 {
-    let mut cost = 0.5 * (wrap_angle(yaw - imu_yaw) / params.yaw_sigma.max(1e-6)).powi(2);
+) -> Linearized {
+    let prior_info = 1.0 / params.yaw_sigma.max(1e-6).powi(2);
+    let yaw_error = wrap_angle(imu_yaw - yaw);
+    let mut out = Linearized {
+        cost: 0.5 * yaw_error * yaw_error * prior_info,
+        h: Matrix4::zeros(),
+        g: Vector4::zeros(),
+    };
+    out.h[(3, 3)] = prior_info;
+    out.g[3] = yaw_error * prior_info;
     for c in cands.iter().filter(|c| c.active) {
         if !residuals(c.obs, c.usable, frame, position, yaw, params, scratch) {
-            return f64::INFINITY;
+            out.cost = f64::INFINITY;
+            continue;
         }
-        cost += scratch
-            .iter()
-            .map(|r| cauchy(r.r / r.sigma, params.robust_k))
-            .sum::<f64>();
+        for r in scratch.iter() {
+            let n = r.r / r.sigma;
+            out.cost += cauchy(n, params.robust_k);
+            let w = cauchy_weight(n, params.robust_k) / (r.sigma * r.sigma);
+            let jt = r.jacobian.transpose();
+            out.h += jt * r.jacobian * w;
+            out.g += jt * (r.r * w);
+        }
     }
-    cost
+    out
 }
 
 /// Levenberg-Marquardt on iteratively reweighted normal equations over the
@@ -218,50 +238,30 @@ fn solve(
     params: &LocalizerParams,
     scratch: &mut Vec<Residual>,
 ) -> Option<(Point3<f64>, f64, Matrix4<f64>)> {
-    let prior_info = 1.0 / params.yaw_sigma.max(1e-6).powi(2);
     let mut lambda = 1e-4;
-    let mut cost = robust_cost(cands, frame, &position, yaw, imu_yaw, params, scratch);
-    if !cost.is_finite() {
+    let mut here = linearize(cands, frame, &position, yaw, imu_yaw, params, scratch);
+    if !here.cost.is_finite() {
         return None;
     }
-    let normal_equations = |position: &Point3<f64>, yaw: f64, scratch: &mut Vec<Residual>| {
-        let mut h = Matrix4::zeros();
-        let mut g = Vector4::zeros();
-        for c in cands.iter().filter(|c| c.active) {
-            if !residuals(c.obs, c.usable, frame, position, yaw, params, scratch) {
-                continue;
-            }
-            for r in scratch.iter() {
-                let w = cauchy_weight(r.r / r.sigma, params.robust_k) / (r.sigma * r.sigma);
-                let jt = r.jacobian.transpose();
-                h += jt * r.jacobian * w;
-                g += jt * (r.r * w);
-            }
-        }
-        h[(3, 3)] += prior_info;
-        g[3] += wrap_angle(imu_yaw - yaw) * prior_info;
-        (h, g)
-    };
     for _ in 0..MAX_ITERATIONS {
-        let (h, g) = normal_equations(&position, yaw, scratch);
         let mut improved = false;
         let mut small_step = false;
         while lambda < 1e8 {
-            let mut damped = h;
+            let mut damped = here.h;
             for i in 0..4 {
-                damped[(i, i)] += lambda * h[(i, i)].max(1e-9);
+                damped[(i, i)] += lambda * here.h[(i, i)].max(1e-9);
             }
             let Some(chol) = damped.cholesky() else {
                 lambda *= 10.0;
                 continue;
             };
-            let step = chol.solve(&g);
+            let step = chol.solve(&here.g);
             if !step.iter().all(|v| v.is_finite()) {
                 return None;
             }
             let candidate = position + step.fixed_rows::<3>(0).into_owned();
             let candidate_yaw = wrap_angle(yaw + step[3]);
-            let new_cost = robust_cost(
+            let there = linearize(
                 cands,
                 frame,
                 &candidate,
@@ -271,10 +271,8 @@ fn solve(
                 scratch,
             );
             small_step = step.fixed_rows::<3>(0).norm() < 1e-4 && step[3].abs() < 1e-7;
-            if new_cost <= cost {
-                position = candidate;
-                yaw = candidate_yaw;
-                cost = new_cost;
+            if there.cost <= here.cost {
+                (position, yaw, here) = (candidate, candidate_yaw, there);
                 lambda = (lambda * 0.3).max(1e-9);
                 improved = true;
                 break;
@@ -288,8 +286,7 @@ fn solve(
             break;
         }
     }
-    let (information, _) = normal_equations(&position, yaw, scratch);
-    Some((position, yaw, information))
+    Some((position, yaw, here.h))
 }
 
 #[cfg(test)]

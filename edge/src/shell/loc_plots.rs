@@ -5,7 +5,7 @@ use std::path::Path;
 use anyhow::Context;
 use plotters::prelude::*;
 
-use crate::loc_eval::{EvalRun, FrameRecord};
+use crate::loc_eval::{EvalRun, FrameRecord, TowerRecord};
 
 const SEED: RGBColor = RGBColor(214, 39, 40);
 const OURS: RGBColor = RGBColor(31, 119, 180);
@@ -244,46 +244,35 @@ fn error_over_time(path: &Path, title: &str, frames: &[FrameRecord]) -> anyhow::
 pub fn write(out: &Path, runs: &[(String, EvalRun, f64)]) -> anyhow::Result<()> {
     register_font()?;
     let first = &runs.first().context("no runs to plot")?.1;
-    let by_h: Vec<_> = first
-        .towers
-        .iter()
-        .map(|t| {
-            (
-                t.box_height_px,
-                t.seed_e - t.true_e,
-                t.seed_d - t.true_d,
-                t.rays_e
-                    .zip(t.rays_d)
-                    .map(|(e, d)| (e - t.true_e, d - t.true_d)),
-            )
-        })
-        .collect();
+    // The same errors, against box height (Fig. 11) and true distance (Fig. 12).
+    let errors_against = |x: fn(&TowerRecord) -> f64| -> Vec<ErrorPoint> {
+        first
+            .towers
+            .iter()
+            .map(|t| {
+                (
+                    x(t),
+                    t.seed_e - t.true_e,
+                    t.seed_d - t.true_d,
+                    t.rays_e
+                        .zip(t.rays_d)
+                        .map(|(e, d)| (e - t.true_e, d - t.true_d)),
+                )
+            })
+            .collect()
+    };
     scatter(
         &out.join("ed_error_vs_box_height.png"),
         "E and D error against box height h (seed-path-1; seed's Fig. 11)",
         "box height h (px)",
-        &by_h,
+        &errors_against(|t| t.box_height_px),
         0.0..720.0,
     )?;
-    let by_d: Vec<_> = first
-        .towers
-        .iter()
-        .map(|t| {
-            (
-                t.true_d,
-                t.seed_e - t.true_e,
-                t.seed_d - t.true_d,
-                t.rays_e
-                    .zip(t.rays_d)
-                    .map(|(e, d)| (e - t.true_e, d - t.true_d)),
-            )
-        })
-        .collect();
     scatter(
         &out.join("ed_error_vs_distance.png"),
         "E and D error against true distance D (seed-path-1; seed's Fig. 12)",
         "true distance D (m)",
-        &by_d,
+        &errors_against(|t| t.true_d),
         0.0..900.0,
     )?;
     for (name, run, outliers) in runs {

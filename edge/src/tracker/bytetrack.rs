@@ -5,7 +5,7 @@
 
 use towernav_protocol::Detection;
 
-use super::common::{Track, TrackOutput, Tracker, TrackerInput, advance, iou_matches};
+use super::common::{TrackOutput, TrackSet, Tracker, TrackerInput, iou_matches};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ByteParams {
@@ -36,18 +36,14 @@ impl Default for ByteParams {
 #[derive(Debug, Clone)]
 pub struct ByteTracker {
     params: ByteParams,
-    tracks: Vec<Track>,
-    next_id: u64,
-    last_time_s: Option<f64>,
+    set: TrackSet,
 }
 
 impl ByteTracker {
     pub fn new(params: ByteParams) -> Self {
         Self {
             params,
-            tracks: Vec::new(),
-            next_id: 1,
-            last_time_s: None,
+            set: TrackSet::default(),
         }
     }
 }
@@ -58,15 +54,13 @@ impl Tracker for ByteTracker {
     }
 
     fn live_ids(&self) -> Vec<u64> {
-        self.tracks.iter().map(|t| t.id).collect()
+        self.set.live_ids()
     }
 
     fn step(&mut self, input: &TrackerInput<'_>) -> Vec<TrackOutput> {
         let p = self.params;
         let time_s = input.time_s;
-        let dt = self.last_time_s.map_or(0.0, |t| (time_s - t).max(0.0));
-        self.last_time_s = Some(time_s);
-        advance(&mut self.tracks, dt, input.motion);
+        self.set.begin(time_s, input.motion);
         let detections: Vec<&Detection> = input
             .detections
             .iter()
@@ -74,29 +68,27 @@ impl Tracker for ByteTracker {
             .collect();
         let (high, low): (Vec<usize>, Vec<usize>) =
             (0..detections.len()).partition(|&i| detections[i].score >= p.high_score);
-        let all_tracks: Vec<usize> = (0..self.tracks.len()).collect();
-        let first = iou_matches(&self.tracks, &all_tracks, &detections, &high, p.iou_high);
+        let tracks = &self.set.tracks;
+        let all_tracks: Vec<usize> = (0..tracks.len()).collect();
+        let first = iou_matches(tracks, &all_tracks, &detections, &high, p.iou_high);
         let left: Vec<usize> = all_tracks
             .iter()
             .copied()
             .filter(|t| !first.iter().any(|(r, _)| r == t))
             .collect();
-        let second = iou_matches(&self.tracks, &left, &detections, &low, p.iou_low);
+        let second = iou_matches(tracks, &left, &detections, &low, p.iou_low);
         let mut outputs = Vec::new();
         let mut used = vec![false; detections.len()];
         for (r, c) in first.into_iter().chain(second) {
             used[c] = true;
-            outputs.extend(self.tracks[r].hit(detections[c], time_s, p.min_hits));
+            outputs.extend(self.set.tracks[r].hit(detections[c], time_s, p.min_hits));
         }
         for &c in &high {
             if !used[c] {
-                self.tracks
-                    .push(Track::new(self.next_id, detections[c], time_s, p.min_hits));
-                self.next_id += 1;
+                self.set.spawn(detections[c], time_s, p.min_hits);
             }
         }
-        self.tracks
-            .retain(|t| time_s - t.last_update_s <= p.max_coast_s);
+        self.set.prune(time_s, p.max_coast_s);
         outputs.sort_by_key(|o| o.track_id);
         outputs
     }

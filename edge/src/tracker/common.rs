@@ -85,8 +85,43 @@ impl Track {
     }
 }
 
+/// The bookkeeping every tracker shares: its tracks, the next id, frame time.
+#[derive(Debug, Clone, Default)]
+pub struct TrackSet {
+    pub tracks: Vec<Track>,
+    next_id: u64,
+    last_time_s: Option<f64>,
+}
+
+impl TrackSet {
+    /// Start a frame: predict every track to `time_s`, compensating camera motion.
+    pub fn begin(&mut self, time_s: f64, motion: Option<&CameraMotion>) {
+        let dt = self.last_time_s.map_or(0.0, |t| (time_s - t).max(0.0));
+        self.last_time_s = Some(time_s);
+        advance(&mut self.tracks, dt, motion);
+    }
+
+    /// A new track from an unmatched detection; returns its id.
+    pub fn spawn(&mut self, d: &Detection, time_s: f64, min_hits: u32) -> u64 {
+        self.next_id += 1;
+        self.tracks
+            .push(Track::new(self.next_id, d, time_s, min_hits));
+        self.next_id
+    }
+
+    pub fn live_ids(&self) -> Vec<u64> {
+        self.tracks.iter().map(|t| t.id).collect()
+    }
+
+    /// Keep tracks unseen for at most `max_coast_s`.
+    pub fn prune(&mut self, time_s: f64, max_coast_s: f64) {
+        self.tracks
+            .retain(|t| time_s - t.last_update_s <= max_coast_s);
+    }
+}
+
 /// Predict every track to now, first moving it by the camera's own rotation.
-pub fn advance(tracks: &mut [Track], dt: f64, motion: Option<&CameraMotion>) {
+fn advance(tracks: &mut [Track], dt: f64, motion: Option<&CameraMotion>) {
     for t in tracks {
         if let Some(m) = motion
             && let Some(moved) = m.warp_box(&t.kf.bbox())

@@ -4,12 +4,12 @@
 //! seen tracks first; then IoU matching for young and just-missed tracks.
 //! Without descriptors the appearance cost falls back to 1 - IoU.
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
 
 use towernav_protocol::Detection;
 
 use super::appearance::cosine_distance;
-use super::common::{Track, TrackOutput, Tracker, TrackerInput, advance, iou_matches};
+use super::common::{Track, TrackOutput, TrackSet, Tracker, TrackerInput, iou_matches};
 use crate::assignment::max_score_matching;
 
 /// Chi-square at 95 % for 4 degrees of freedom (DeepSORT's gate).
@@ -43,33 +43,43 @@ impl Default for DeepSortParams {
 }
 
 #[derive(Debug, Clone)]
-struct DeepTrack {
-    track: Track,
-    gallery: VecDeque<Vec<f32>>,
-}
-
-#[derive(Debug, Clone)]
 pub struct DeepSortTracker {
     params: DeepSortParams,
-    tracks: Vec<DeepTrack>,
-    next_id: u64,
-    last_time_s: Option<f64>,
+    set: TrackSet,
+    /// Recent descriptors per track id, newest first.
+    galleries: HashMap<u64, VecDeque<Vec<f32>>>,
 }
 
 impl DeepSortTracker {
     pub fn new(params: DeepSortParams) -> Self {
         Self {
             params,
-            tracks: Vec::new(),
-            next_id: 1,
-            last_time_s: None,
+            set: TrackSet::default(),
+            galleries: HashMap::new(),
         }
     }
 
-    fn frames_since_update(&self, t: &DeepTrack, time_s: f64) -> u32 {
-        ((time_s - t.track.last_update_s) / self.params.frame_s)
+    fn frames_since_update(&self, t: &Track, time_s: f64) -> u32 {
+        ((time_s - t.last_update_s) / self.params.frame_s)
             .round()
             .max(0.0) as u32
+    }
+
+    /// Appearance cost of a track for a detection, or `None` outside the gates.
+    fn cost(&self, t: &Track, d: &Detection, feature: Option<&Vec<f32>>) -> Option<f32> {
+        let p = self.params;
+        if t.tower_type != d.tower_type || t.kf.mahalanobis2(&d.bbox) > MAHALANOBIS_GATE {
+            return None;
+        }
+        let gallery = self.galleries.get(&t.id).filter(|g| !g.is_empty());
+        let cost = match (feature, gallery) {
+            (Some(f), Some(g)) => g
+                .iter()
+                .map(|x| cosine_distance(x, f))
+                .fold(f32::INFINITY, f32::min),
+            _ => (1.0 - t.kf.bbox().iou(&d.bbox)) as f32 * p.max_cosine,
+        };
+        (cost <= p.max_cosine).then_some(cost)
     }
 }
 
@@ -79,19 +89,13 @@ impl Tracker for DeepSortTracker {
     }
 
     fn live_ids(&self) -> Vec<u64> {
-        self.tracks.iter().map(|t| t.track.id).collect()
+        self.set.live_ids()
     }
 
     fn step(&mut self, input: &TrackerInput<'_>) -> Vec<TrackOutput> {
         let p = self.params;
         let time_s = input.time_s;
-        let dt = self.last_time_s.map_or(0.0, |t| (time_s - t).max(0.0));
-        self.last_time_s = Some(time_s);
-        let mut plain: Vec<Track> = self.tracks.iter().map(|t| t.track.clone()).collect();
-        advance(&mut plain, dt, input.motion);
-        for (d, t) in self.tracks.iter_mut().zip(plain) {
-            d.track = t;
-        }
+        self.set.begin(time_s, input.motion);
         let dets: Vec<(usize, &Detection)> = input
             .detections
             .iter()
@@ -101,15 +105,17 @@ impl Tracker for DeepSortTracker {
         let detections: Vec<&Detection> = dets.iter().map(|(_, d)| *d).collect();
         let feature = |c: usize| input.features.and_then(|f| f.get(dets[c].0));
         let mut det_free = vec![true; detections.len()];
+        let mut track_free = vec![true; self.set.tracks.len()];
         let mut matches: Vec<(usize, usize)> = Vec::new();
 
         // Matching cascade: confirmed tracks, most recently seen first.
         for age in 1..=p.max_age_frames {
-            let rows: Vec<usize> = (0..self.tracks.len())
+            let tracks = &self.set.tracks;
+            let rows: Vec<usize> = (0..tracks.len())
                 .filter(|&i| {
-                    self.tracks[i].track.confirmed
-                        && self.frames_since_update(&self.tracks[i], time_s) == age
-                        && !matches.iter().any(|(r, _)| *r == i)
+                    track_free[i]
+                        && tracks[i].confirmed
+                        && self.frames_since_update(&tracks[i], time_s) == age
                 })
                 .collect();
             let cols: Vec<usize> = (0..detections.len()).filter(|&c| det_free[c]).collect();
@@ -120,78 +126,60 @@ impl Tracker for DeepSortTracker {
                 rows.len(),
                 cols.len(),
                 |r, c| {
-                    let t = &self.tracks[rows[r]];
-                    let d = detections[cols[c]];
-                    if t.track.tower_type != d.tower_type
-                        || t.track.kf.mahalanobis2(&d.bbox) > MAHALANOBIS_GATE
-                    {
-                        return 0.0;
-                    }
-                    let cost = match feature(cols[c]) {
-                        Some(f) if !t.gallery.is_empty() => t
-                            .gallery
-                            .iter()
-                            .map(|g| cosine_distance(g, f))
-                            .fold(f32::INFINITY, f32::min),
-                        _ => (1.0 - t.track.kf.bbox().iou(&d.bbox)) as f32 * p.max_cosine,
-                    };
-                    if cost > p.max_cosine {
-                        0.0
-                    } else {
-                        f64::from(1.0 - cost)
-                    }
+                    self.cost(&tracks[rows[r]], detections[cols[c]], feature(cols[c]))
+                        .map_or(0.0, |cost| f64::from(1.0 - cost))
                 },
                 f64::MIN_POSITIVE,
             );
             for (r, c) in found {
                 matches.push((rows[r], cols[c]));
+                track_free[rows[r]] = false;
                 det_free[cols[c]] = false;
             }
         }
         // IoU for unconfirmed tracks and those missed for just one frame.
-        let rows: Vec<usize> = (0..self.tracks.len())
+        let rows: Vec<usize> = (0..self.set.tracks.len())
             .filter(|&i| {
-                !matches.iter().any(|(r, _)| *r == i)
-                    && (!self.tracks[i].track.confirmed
-                        || self.frames_since_update(&self.tracks[i], time_s) <= 1)
+                let t = &self.set.tracks[i];
+                track_free[i] && (!t.confirmed || self.frames_since_update(t, time_s) <= 1)
             })
             .collect();
         let cols: Vec<usize> = (0..detections.len()).filter(|&c| det_free[c]).collect();
-        let plain: Vec<Track> = self.tracks.iter().map(|t| t.track.clone()).collect();
-        for (r, c) in iou_matches(&plain, &rows, &detections, &cols, p.iou_min) {
+        for (r, c) in iou_matches(&self.set.tracks, &rows, &detections, &cols, p.iou_min) {
             matches.push((r, c));
             det_free[c] = false;
         }
 
         let mut outputs = Vec::new();
         for &(r, c) in &matches {
-            let t = &mut self.tracks[r];
-            outputs.extend(t.track.hit(detections[c], time_s, p.min_hits));
+            let t = &mut self.set.tracks[r];
+            outputs.extend(t.hit(detections[c], time_s, p.min_hits));
             if let Some(f) = feature(c) {
-                t.gallery.push_front(f.clone());
-                t.gallery.truncate(p.gallery);
+                let g = self.galleries.entry(t.id).or_default();
+                g.push_front(f.clone());
+                g.truncate(p.gallery);
             }
         }
         for c in (0..detections.len()).filter(|&c| det_free[c]) {
-            let mut gallery = VecDeque::new();
+            let id = self.set.spawn(detections[c], time_s, p.min_hits);
             if let Some(f) = feature(c) {
-                gallery.push_front(f.clone());
+                self.galleries.insert(id, VecDeque::from([f.clone()]));
             }
-            self.tracks.push(DeepTrack {
-                track: Track::new(self.next_id, detections[c], time_s, p.min_hits),
-                gallery,
-            });
-            self.next_id += 1;
         }
+        // Confirmed tracks live through the cascade's depth; a tentative one
+        // dies at its first miss.
         let max_age_s = f64::from(p.max_age_frames) * p.frame_s;
-        self.tracks.retain(|t| {
-            let missed = time_s - t.track.last_update_s;
-            if t.track.confirmed {
-                missed <= max_age_s
-            } else {
-                missed <= 0.5 * p.frame_s
-            }
+        self.set.tracks.retain(|t| {
+            let missed = time_s - t.last_update_s;
+            missed
+                <= if t.confirmed {
+                    max_age_s
+                } else {
+                    0.5 * p.frame_s
+                }
         });
+        let live: Vec<u64> = self.set.live_ids();
+        self.galleries.retain(|id, _| live.contains(id));
         outputs.sort_by_key(|o| o.track_id);
         outputs
     }

@@ -3,7 +3,7 @@
 
 use towernav_protocol::Detection;
 
-use super::common::{Track, TrackOutput, Tracker, TrackerInput, advance, iou_matches};
+use super::common::{TrackOutput, TrackSet, Tracker, TrackerInput, iou_matches};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SortParams {
@@ -31,24 +31,15 @@ impl Default for SortParams {
 #[derive(Debug, Clone)]
 pub struct SortTracker {
     params: SortParams,
-    tracks: Vec<Track>,
-    next_id: u64,
-    last_time_s: Option<f64>,
+    set: TrackSet,
 }
 
 impl SortTracker {
     pub fn new(params: SortParams) -> Self {
         Self {
             params,
-            tracks: Vec::new(),
-            next_id: 1,
-            last_time_s: None,
+            set: TrackSet::default(),
         }
-    }
-
-    /// Ids of every live track, reported or not.
-    pub fn live_ids(&self) -> impl Iterator<Item = u64> + '_ {
-        self.tracks.iter().map(|t| t.id)
     }
 
     /// One frame with no camera-motion compensation.
@@ -63,46 +54,41 @@ impl Tracker for SortTracker {
     }
 
     fn live_ids(&self) -> Vec<u64> {
-        self.tracks.iter().map(|t| t.id).collect()
+        self.set.live_ids()
     }
 
     fn step(&mut self, input: &TrackerInput<'_>) -> Vec<TrackOutput> {
+        let p = self.params;
         let time_s = input.time_s;
-        let dt = self.last_time_s.map_or(0.0, |t| (time_s - t).max(0.0));
-        self.last_time_s = Some(time_s);
-        advance(&mut self.tracks, dt, input.motion);
+        self.set.begin(time_s, input.motion);
         let detections: Vec<&Detection> = input
             .detections
             .iter()
             .filter(|d| d.bbox.is_finite())
             .collect();
-        let all_tracks: Vec<usize> = (0..self.tracks.len()).collect();
+        let all_tracks: Vec<usize> = (0..self.set.tracks.len()).collect();
         let all_dets: Vec<usize> = (0..detections.len()).collect();
         let matches = iou_matches(
-            &self.tracks,
+            &self.set.tracks,
             &all_tracks,
             &detections,
             &all_dets,
-            self.params.iou_min,
+            p.iou_min,
         );
-        let mut matched_detection = vec![false; detections.len()];
+        let mut matched = vec![false; detections.len()];
         let mut outputs = Vec::new();
         for (r, c) in matches {
-            matched_detection[c] = true;
-            outputs.extend(self.tracks[r].hit(detections[c], time_s, self.params.min_hits));
+            matched[c] = true;
+            outputs.extend(self.set.tracks[r].hit(detections[c], time_s, p.min_hits));
         }
         for (d, _) in detections
             .iter()
-            .zip(&matched_detection)
-            .filter(|(d, m)| !**m && d.score >= self.params.min_score)
+            .zip(&matched)
+            .filter(|(d, m)| !**m && d.score >= p.min_score)
         {
-            self.tracks
-                .push(Track::new(self.next_id, d, time_s, self.params.min_hits));
-            self.next_id += 1;
+            self.set.spawn(d, time_s, p.min_hits);
         }
-        let max_coast = self.params.max_coast_s;
-        self.tracks
-            .retain(|t| time_s - t.last_update_s <= max_coast);
+        self.set.prune(time_s, p.max_coast_s);
         outputs.sort_by_key(|o| o.track_id);
         outputs
     }
@@ -146,7 +132,7 @@ mod tests {
         sort.update(0.0, &[det(100.0, TowerType::A)]);
         let out = sort.update(1.0 / 30.0, &[det(100.0, TowerType::B)]);
         assert!(out.is_empty(), "the B box must not continue the A track");
-        assert_eq!(sort.live_ids().count(), 2);
+        assert_eq!(sort.live_ids().len(), 2);
     }
 
     #[test]
@@ -156,8 +142,8 @@ mod tests {
             sort.update(i as f64 / 30.0, &[det(100.0, TowerType::C)]);
         }
         sort.update(0.5, &[]);
-        assert_eq!(sort.live_ids().count(), 1);
+        assert_eq!(sort.live_ids().len(), 1);
         sort.update(1.0, &[]);
-        assert_eq!(sort.live_ids().count(), 0);
+        assert_eq!(sort.live_ids().len(), 0);
     }
 }
