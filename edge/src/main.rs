@@ -5,18 +5,21 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use towernav_edge::LandmarkMap;
+use towernav_edge::detector::PostprocessParams;
 use towernav_edge::localizer::Method;
 use towernav_edge::report::FlightReport;
 use towernav_edge::shell::collector::{PoseCollector, wait_for_peer};
+use towernav_edge::shell::detector_eval_cmd::DetectorEvalOptions;
 use towernav_edge::shell::landmark_sync::LandmarkSync;
 use towernav_edge::shell::landmarks_source::load_landmarks;
 use towernav_edge::shell::node::{EdgeNode, open_session};
+use towernav_edge::shell::rendered_detector::RenderedDetector;
 use towernav_edge::shell::sim_flight::{FlightRecord, SimFlightOptions, fly};
+use towernav_edge::shell::yolo::{DetectorOptions, YoloDetector};
 use towernav_protocol::NodeId;
 use towernav_protocol::session::Endpoints;
-use towernav_sim::Scenario;
+use towernav_sim::{Conditions, Scenario};
 
 #[derive(Parser)]
 #[command(about = "towernav edge daemon: landmark localization from a forward camera")]
@@ -44,6 +47,22 @@ enum Command {
         #[arg(long)]
         reid: Option<PathBuf>,
     },
+    /// The seed's Table 1 for a YOLO model: precision, recall, mAP50, mAP50-95 per
+    /// class, recall by box height, and latency, on held-out simulated worlds.
+    EvalDetector {
+        #[command(flatten)]
+        detector: DetectorArgs,
+        /// Held-out worlds to render (drawn from --seed; training used seed 0).
+        #[arg(long, default_value_t = 10)]
+        worlds: u64,
+        #[arg(long, default_value_t = 30)]
+        frames_per_world: u64,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Folder for detector-eval.json.
+        #[arg(long, default_value = "target/detector-eval")]
+        out: PathBuf,
+    },
     /// Reproduce the seed's localization analysis (seed vs ours, tables and PNG plots).
     EvalLocalization {
         /// Folder for the plots.
@@ -52,6 +71,35 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+}
+
+#[derive(Args, Clone)]
+struct DetectorArgs {
+    /// YOLO model (Ultralytics ONNX export, classes A-D).
+    #[arg(long, default_value = "models/towers.onnx")]
+    model: PathBuf,
+    /// ONNX Runtime threads for inference.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Run inference on CUDA (build with `--features cuda`).
+    #[arg(long)]
+    cuda: bool,
+    /// Detections below this confidence are dropped.
+    #[arg(long, default_value_t = 0.25)]
+    min_score: f32,
+}
+
+impl DetectorArgs {
+    fn options(&self) -> DetectorOptions {
+        DetectorOptions {
+            threads: self.threads,
+            cuda: self.cuda,
+            post: PostprocessParams {
+                min_score: self.min_score,
+                ..PostprocessParams::default()
+            },
+        }
+    }
 }
 
 #[derive(Args)]
@@ -88,6 +136,12 @@ struct RunArgs {
     /// Publish raw per-frame fixes instead of the EKF's estimates.
     #[arg(long)]
     no_filter: bool,
+    /// Boxes from the YOLO model on rendered frames (`yolo`), or from the
+    /// simulator's truth with noise (`oracle`, no rendering).
+    #[arg(long, default_value = "yolo", value_parser = ["yolo", "oracle"])]
+    detector: String,
+    #[command(flatten)]
+    yolo: DetectorArgs,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -102,6 +156,27 @@ fn main() -> anyhow::Result<()> {
     if let Command::EvalLocalization { out, seed } = &cli.command {
         return towernav_edge::shell::loc_eval_cmd::write_all(out, *seed);
     }
+    if let Command::EvalDetector {
+        detector,
+        worlds,
+        frames_per_world,
+        seed,
+        out,
+    } = &cli.command
+    {
+        let options = DetectorEvalOptions {
+            worlds: *worlds,
+            frames_per_world: *frames_per_world,
+            seed: *seed,
+            recall_score: detector.min_score,
+        };
+        return towernav_edge::shell::detector_eval_cmd::write_all(
+            &detector.model,
+            &detector.options(),
+            &options,
+            out,
+        );
+    }
     if let Command::EvalTracking { out, seed, reid } = &cli.command {
         return towernav_edge::shell::tracking_eval_cmd::write_all(out, *seed, reid.as_deref());
     }
@@ -114,7 +189,9 @@ fn main() -> anyhow::Result<()> {
         match cli.command {
             Command::Run(args) => run(args, false).await,
             Command::Demo(args) => run(args, true).await,
-            Command::EvalLocalization { .. } | Command::EvalTracking { .. } => Ok(()),
+            Command::EvalLocalization { .. }
+            | Command::EvalTracking { .. }
+            | Command::EvalDetector { .. } => Ok(()),
         }
     })
 }
@@ -195,14 +272,7 @@ async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
         "            (start it before or after the edge; `--speed 1` plays the flight in real time)"
     );
 
-    let bar = ProgressBar::new(scenario.frame_count());
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} flying [{bar:40}] {pos}/{len} frames {per_sec} eta {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
+    let bar = towernav_edge::shell::progress::bar(scenario.frame_count(), "flying");
     let options = SimFlightOptions {
         speed: (args.speed > 0.0).then_some(args.speed),
         method: if args.method == "seed" {
@@ -213,9 +283,28 @@ async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
         filter: !args.no_filter,
         ..SimFlightOptions::default()
     };
-    let record: FlightRecord = fly(&node, &scenario, map, options, sync.as_mut(), |n| {
-        bar.set_position(n)
-    })
+    let mut detector = match args.detector.as_str() {
+        "yolo" => {
+            let yolo = YoloDetector::load(&args.yolo.model, &args.yolo.options()).with_context(|| {
+                "loading the detector (run `cargo xtask setup-ort` for ONNX Runtime, or fly with `--detector oracle`)"
+            })?;
+            Some(RenderedDetector::new(
+                &scenario,
+                yolo,
+                Conditions::default(),
+            ))
+        }
+        _ => None,
+    };
+    let record: FlightRecord = fly(
+        &node,
+        &scenario,
+        map,
+        options,
+        sync.as_mut(),
+        detector.as_mut(),
+        |n| bar.set_position(n),
+    )
     .await?;
     bar.finish_and_clear();
 

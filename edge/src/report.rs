@@ -21,6 +21,9 @@ pub struct FlightReport {
     pub binding_accuracy: f64,
     /// Of track-frames on a tower the tracker must cover, the share bound.
     pub bound_share: f64,
+    /// With the real detector: mean milliseconds per frame rendering and
+    /// detecting, and frames whose detection failed.
+    pub detector_ms: Option<(f64, f64, u64)>,
 }
 
 impl FlightReport {
@@ -50,6 +53,14 @@ impl FlightReport {
             horizontal: error_stats(&errors),
             binding_accuracy: identity.binding_accuracy,
             bound_share: identity.binding_coverage,
+            detector_ms: (record.detect_seconds > 0.0).then(|| {
+                let per = 1e3 / record.frames.max(1) as f64;
+                (
+                    record.render_seconds * per,
+                    record.detect_seconds * per,
+                    record.detector_errors,
+                )
+            }),
         }
     }
 }
@@ -67,6 +78,18 @@ impl fmt::Display for FlightReport {
             "processing rate    {:.0} frames/s in the pipeline core (one thread), {:.0} frames/s end to end",
             self.core_rate_hz, self.wall_rate_hz
         )?;
+        if let Some((render, detect, errors)) = self.detector_ms {
+            writeln!(
+                f,
+                "detector           YOLO on rendered frames: {detect:.1} ms per frame (pre + inference + post), \
+                 rendering {render:.1} ms; {errors} frames failed"
+            )?;
+        } else {
+            writeln!(
+                f,
+                "detector           the simulator's oracle (truth boxes with noise)"
+            )?;
+        }
         writeln!(
             f,
             "poses              {} published, {} received over Zenoh",

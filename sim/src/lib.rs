@@ -16,7 +16,7 @@ pub mod world;
 
 pub use flight::{Flight, StraightFlight};
 pub use oracle::{OracleDetector, OracleParams};
-pub use render::{Conditions, Renderer};
+pub use render::{Conditions, FrameBuffers, Renderer};
 pub use scenario::Scenario;
 pub use truth::{FrameTruth, TruthBox};
 pub use world::{SimTower, World};

@@ -10,9 +10,11 @@ use towernav_protocol::DetectionFrame;
 use crate::flight::{Flight, StraightFlight};
 use crate::oracle::{OracleDetector, OracleParams};
 use crate::quadrotor::{QuadParams, fly};
+use crate::render::{Conditions, FrameBuffers, Renderer};
 use crate::truth::{FrameTruth, frame_truth, outlines};
-use crate::waypoints::{FlightPlan, PlanError};
+use crate::waypoints::{FlightPlan, PlanError, random_crossing};
 use crate::world::World;
+use crate::world::WorldParams;
 use nalgebra::Point3;
 
 #[derive(Debug, Clone)]
@@ -87,6 +89,48 @@ impl Scenario {
             oracle: OracleParams::default(),
             imu: ImuParams::default(),
         }
+    }
+
+    /// World number `world_seed` of a dataset: a random field, a crossing
+    /// flight over it and random weather, all drawn from the seed. Training
+    /// data and held-out evaluations draw from disjoint seeds.
+    pub fn random_crossing(world_seed: u64) -> (Self, Conditions) {
+        let mut rng = ChaCha8Rng::seed_from_u64(world_seed);
+        let params = WorldParams::default();
+        let world = World::random(world_seed, &params);
+        let towers: Vec<(f64, f64, f64)> = world
+            .towers
+            .iter()
+            .map(|t| (t.foot_in_world.x, t.foot_in_world.y, t.height_m))
+            .collect();
+        let plan = random_crossing(params.extent_m, &towers, &mut rng);
+        let scenario = Self::flying(world, &plan, world_seed);
+        let conditions = Conditions::random(&mut rng);
+        (scenario, conditions)
+    }
+
+    /// A renderer for this scenario's world and camera, textured from its seed.
+    pub fn renderer(&self) -> Renderer {
+        Renderer::new(&self.world, self.camera, self.seed)
+    }
+
+    /// Render the frame `truth` describes, blurred by the flight's attitude
+    /// rates, with sensor noise repeatable per frame.
+    pub fn render_into(
+        &self,
+        renderer: &Renderer,
+        buffers: &mut FrameBuffers,
+        truth: &FrameTruth,
+        conditions: &Conditions,
+    ) {
+        let rates = self.flight.attitude_rates(truth.time_s);
+        renderer.render_into(
+            buffers,
+            &truth.pose,
+            conditions,
+            rates,
+            self.seed ^ truth.seq,
+        );
     }
 
     pub fn frame_count(&self) -> u64 {

@@ -46,7 +46,7 @@ async fn poses_arrive_decode_and_match_the_truth() -> anyhow::Result<()> {
         max_frames: Some(900),
         ..SimFlightOptions::default()
     };
-    let record = fly(&node, &scenario, map, options, None, |_| {}).await?;
+    let record = fly(&node, &scenario, map, options, None, None, |_| {}).await?;
     assert!(
         record.poses_published > 700,
         "only {} fixes in 900 frames",

@@ -1,9 +1,11 @@
-//! `cargo xtask demo | gs | test`: the project's two front doors, plus the ground station.
+//! `cargo xtask demo | gs | test | train | setup-ort`: the project's two front doors, the ground station, and the detector's training.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
+
+mod train;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -27,6 +29,22 @@ enum Task {
     Gs,
     /// Formatting, lints and every test: what CI runs.
     Test,
+    /// Train the tower detector from scratch on rendered data (background, resumable).
+    Train {
+        /// Wait for it instead of running it in the background.
+        #[arg(long)]
+        foreground: bool,
+        /// Copy a finished run's model into models/.
+        #[arg(long)]
+        ship: bool,
+        /// Wall-clock budget for the training loop, hours.
+        #[arg(long, default_value_t = 1.6)]
+        hours: f64,
+        #[arg(long, default_value_t = 100)]
+        worlds: u32,
+        #[arg(long, default_value_t = 30)]
+        frames_per_world: u32,
+    },
     /// Install ONNX Runtime's shared library into .ort/ (from the onnxruntime wheel on PyPI).
     SetupOrt,
 }
@@ -44,6 +62,22 @@ fn main() -> anyhow::Result<()> {
         Task::Gs => ground_station(&root),
         Task::Test => test(&root),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
+        Task::Train {
+            foreground,
+            ship,
+            hours,
+            worlds,
+            frames_per_world,
+        } => train::train(
+            &root,
+            &train::TrainOptions {
+                foreground,
+                ship,
+                hours,
+                worlds,
+                frames_per_world,
+            },
+        ),
     }
 }
 

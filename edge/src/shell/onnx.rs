@@ -82,6 +82,49 @@ pub fn init_runtime() -> Result<&'static Environment, OnnxError> {
     }
 }
 
+/// A session on the model at `path` with `threads` intra-op threads, on the
+/// CUDA execution provider when asked (and built with the `cuda` feature).
+pub fn load_session(path: &Path, threads: usize, cuda: bool) -> Result<Session, OnnxError> {
+    let env = init_runtime()?;
+    let bad = |reason: String| OnnxError::Model {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read it: {e}")))?;
+    let builder = Session::builder(env)
+        .map_err(|e| bad(e.to_string()))?
+        .with_intra_threads(threads.max(1))
+        .map_err(|e| bad(e.to_string()))?;
+    let mut builder = if cuda {
+        with_cuda(builder).map_err(bad)?
+    } else {
+        builder
+    };
+    builder
+        .commit_from_memory(&bytes)
+        .map_err(|e| bad(format!("not a loadable ONNX model: {e}")))
+}
+
+#[cfg(feature = "cuda")]
+fn with_cuda(
+    builder: ort::session::builder::SessionBuilder,
+) -> Result<ort::session::builder::SessionBuilder, String> {
+    builder
+        .with_execution_providers([ort::ep::CUDA::default().build()])
+        .map_err(|e| format!("enabling CUDA: {e}"))
+}
+
+#[cfg(not(feature = "cuda"))]
+fn with_cuda(
+    _builder: ort::session::builder::SessionBuilder,
+) -> Result<ort::session::builder::SessionBuilder, String> {
+    Err(
+        "CUDA was asked for, but towernav-edge was built without the `cuda` feature \
+         (cargo build --features towernav-edge/cuda)"
+            .into(),
+    )
+}
+
 /// A re-identification model: crops [N, 3, H, W] (RGB in 0..1) in, one
 /// embedding per crop out, L2-normalised here for cosine distance.
 pub struct ReidModel {
@@ -94,18 +137,11 @@ pub struct ReidModel {
 
 impl ReidModel {
     pub fn load(path: &Path, threads: usize) -> Result<Self, OnnxError> {
-        let env = init_runtime()?;
+        let session = load_session(path, threads, false)?;
         let bad = |reason: String| OnnxError::Model {
             path: path.to_path_buf(),
             reason,
         };
-        let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read it: {e}")))?;
-        let session = Session::builder(env)
-            .map_err(|e| bad(e.to_string()))?
-            .with_intra_threads(threads.max(1))
-            .map_err(|e| bad(e.to_string()))?
-            .commit_from_memory(&bytes)
-            .map_err(|e| bad(format!("not a loadable ONNX model: {e}")))?;
         let input = session
             .inputs()
             .first()

@@ -9,6 +9,7 @@ use towernav_sim::Scenario;
 use super::ShellError;
 use super::landmark_sync::LandmarkSync;
 use super::node::EdgeNode;
+use super::rendered_detector::RenderedDetector;
 use crate::landmarks::LandmarkMap;
 use crate::localizer::Method;
 use crate::mot_metrics::MotAccumulator;
@@ -53,6 +54,11 @@ pub struct FlightRecord {
     pub identity: MotAccumulator,
     /// True horizontal position per frame, for scoring received poses by `seq`.
     pub truth_en: Vec<(f64, f64)>,
+    /// With the real detector: seconds rendering and detecting, and frames
+    /// whose detection failed (flown on with no boxes).
+    pub render_seconds: f64,
+    pub detect_seconds: f64,
+    pub detector_errors: u64,
 }
 
 pub async fn fly(
@@ -61,6 +67,7 @@ pub async fn fly(
     map: LandmarkMap,
     options: SimFlightOptions,
     mut sync: Option<&mut LandmarkSync>,
+    mut detector: Option<&mut RenderedDetector>,
     mut on_frame: impl FnMut(u64),
 ) -> Result<FlightRecord, ShellError> {
     let start = scenario.start_in_world();
@@ -78,7 +85,7 @@ pub async fn fly(
     let mut last_status = Instant::now() - Duration::from_secs(10);
     let mut frames_since_status = 0u64;
 
-    for (truth, frame) in scenario
+    for (truth, mut frame) in scenario
         .frames()
         .take(options.max_frames.unwrap_or(u64::MAX) as usize)
     {
@@ -111,6 +118,13 @@ pub async fn fly(
             .await?;
         }
 
+        if let Some(detector) = detector.as_deref_mut() {
+            frame.detections = detector.detect(scenario, &truth).unwrap_or_else(|e| {
+                tracing::warn!(seq = frame.seq, error = %e, "detector failed; frame flown without boxes");
+                record.detector_errors += 1;
+                Vec::new()
+            });
+        }
         let t0 = Instant::now();
         let out = pipeline.process(&frame);
         record.core_seconds += t0.elapsed().as_secs_f64();
@@ -157,5 +171,9 @@ pub async fn fly(
         on_frame(record.frames);
     }
     record.wall_seconds = wall.elapsed().as_secs_f64();
+    if let Some(detector) = detector {
+        record.render_seconds = detector.render_seconds;
+        record.detect_seconds = detector.detect_seconds;
+    }
     Ok(record)
 }

@@ -6,12 +6,8 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use towernav_protocol::TowerType;
-use towernav_sim::waypoints::random_crossing;
-use towernav_sim::world::WorldParams;
-use towernav_sim::{Conditions, Renderer, Scenario, World};
+use towernav_sim::Scenario;
 
 use crate::cli::flight_cmd::progress;
 use crate::cli::mot;
@@ -79,18 +75,8 @@ pub fn write_dataset(out: &Path, options: &DatasetOptions) -> anyhow::Result<()>
     for w in 0..options.worlds {
         let world_seed = options.seed.wrapping_mul(1_000_003).wrapping_add(w as u64);
         let split = split_of(w, options.worlds, options.val_share, options.test_share);
-        let mut rng = ChaCha8Rng::seed_from_u64(world_seed);
-        let params = WorldParams::default();
-        let world = World::random(world_seed, &params);
-        let towers: Vec<(f64, f64, f64)> = world
-            .towers
-            .iter()
-            .map(|t| (t.foot_in_world.x, t.foot_in_world.y, t.height_m))
-            .collect();
-        let plan = random_crossing(params.extent_m, &towers, &mut rng);
-        let scenario = Scenario::flying(world, &plan, world_seed);
-        let conditions = Conditions::random(&mut rng);
-        let renderer = Renderer::new(&scenario.world, scenario.camera, world_seed);
+        let (scenario, conditions) = Scenario::random_crossing(world_seed);
+        let renderer = scenario.renderer();
         let mut buffers = renderer.buffers();
         let frames = scenario.frame_count().max(1);
         let stride = (frames / options.frames_per_world as u64).max(1);
@@ -100,10 +86,9 @@ pub fn write_dataset(out: &Path, options: &DatasetOptions) -> anyhow::Result<()>
         for (truth, _) in scenario.frames() {
             let seq = truth.seq;
             if seq % stride == 0 && seq / stride < options.frames_per_world as u64 {
-                let rates = scenario.flight.attitude_rates(truth.time_s);
                 let mut look = conditions;
                 look.exposure *= 1.0 + 0.05 * ((seq as f64) * 0.37).sin();
-                renderer.render_into(&mut buffers, &truth.pose, &look, rates, world_seed ^ seq);
+                scenario.render_into(&renderer, &mut buffers, &truth, &look);
                 let stem = format!("{name}_{seq:05}");
                 let img = out
                     .join("images")

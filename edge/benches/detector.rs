@@ -1,0 +1,56 @@
+//! The shipped tower detector on one 1280x720 rendered frame, pre- and
+//! post-processing included, on ONNX Runtime's CPU provider with 2 threads
+//! (this project's target machine). Needs the ONNX Runtime library
+//! (`cargo xtask setup-ort`) and `models/towers.onnx`; says so and skips
+//! the model runs when either is missing.
+
+use std::path::PathBuf;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use towernav_edge::detector::Preprocessor;
+use towernav_edge::shell::yolo::{DetectorOptions, YoloDetector};
+use towernav_sim::{Scenario, World};
+
+fn detector(c: &mut Criterion) {
+    let scenario = match Scenario::preset(World::seed_field(), "seed-path-1", 1) {
+        Ok(s) => s,
+        Err(e) => panic!("preset: {e}"),
+    };
+    let renderer = scenario.renderer();
+    let mut buffers = renderer.buffers();
+    let truth = scenario.truth(24 * 30);
+    scenario.render_into(&renderer, &mut buffers, &truth, &Default::default());
+    let frame = buffers.image;
+
+    let mut pre = Preprocessor::new(512, 320);
+    c.bench_function("letterbox_1280x720_to_512x320", |b| {
+        b.iter(|| pre.run(&frame, 0).map(|(lb, _)| lb.scale))
+    });
+
+    let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/towers.onnx");
+    let threads = std::env::var("TOWERNAV_THREADS")
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or(2);
+    let options = DetectorOptions {
+        threads,
+        ..DetectorOptions::default()
+    };
+    match YoloDetector::load(&model, &options) {
+        Ok(mut detector) => {
+            let input = format!(
+                "detect_1280x720_{}x{}_{}threads",
+                detector.info().input_width,
+                detector.info().input_height,
+                threads
+            );
+            c.bench_function(&input, |b| {
+                b.iter(|| detector.detect(&frame, 0).map(|d| d.len()))
+            });
+        }
+        Err(e) => eprintln!("skipping the model benchmark: {e}"),
+    }
+}
+
+criterion_group!(benches, detector);
+criterion_main!(benches);

@@ -1,0 +1,109 @@
+//! From the model's raw output to tower detections in frame pixels.
+
+use towernav_geometry::PixelBox;
+use towernav_protocol::Detection;
+
+use super::classes::ClassMap;
+use super::decode::{LayoutError, decode, nms};
+use super::letterbox::Letterbox;
+
+/// Score and overlap thresholds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PostprocessParams {
+    /// Candidates below this score are dropped before NMS.
+    pub min_score: f32,
+    /// Same-class boxes overlapping a better one by more than this are dropped.
+    pub nms_iou: f64,
+    /// Boxes whose clipped height is below this many frame pixels are dropped.
+    pub min_height_px: f64,
+}
+
+impl Default for PostprocessParams {
+    fn default() -> Self {
+        Self {
+            min_score: 0.25,
+            nms_iou: 0.5,
+            min_height_px: 4.0,
+        }
+    }
+}
+
+/// Decode, suppress, map back through the letterbox and clip to the frame.
+pub fn postprocess(
+    output: &[f32],
+    shape: &[usize],
+    classes: &ClassMap,
+    letterbox: &Letterbox,
+    frame_size: (u32, u32),
+    params: &PostprocessParams,
+) -> Result<Vec<Detection>, LayoutError> {
+    let raw = decode(output, shape, classes.len(), params.min_score)?;
+    let (w, h) = (f64::from(frame_size.0), f64::from(frame_size.1));
+    Ok(nms(raw, params.nms_iou)
+        .into_iter()
+        .filter_map(|d| {
+            let bbox: PixelBox = letterbox.to_frame(&d.bbox).clipped(w, h);
+            (bbox.height() >= params.min_height_px && bbox.width() > 0.0).then_some(Detection {
+                bbox,
+                tower_type: classes.tower_type(d.class)?,
+                score: f64::from(d.score),
+            })
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use towernav_protocol::TowerType;
+
+    #[test]
+    fn v8_boxes_come_back_in_frame_pixels_clipped_and_typed() {
+        let classes =
+            ClassMap::from_metadata(Some("{0: 'A', 1: 'B', 2: 'C', 3: 'D'}")).expect("classes");
+        let lb = Letterbox::new(1280, 720, 512, 320);
+        // Candidates: a B box at input (100, 116)..(110, 156); a duplicate of it; a
+        // D box hanging off the right edge; a weak one.
+        let cols = [
+            [105.0, 136.0, 10.0, 40.0, 0.0, 0.9, 0.0, 0.0],
+            [105.5, 136.0, 10.0, 40.0, 0.0, 0.8, 0.0, 0.0],
+            [510.0, 100.0, 8.0, 40.0, 0.0, 0.0, 0.0, 0.6],
+            [300.0, 100.0, 8.0, 40.0, 0.1, 0.0, 0.0, 0.0],
+        ];
+        let mut data = vec![0f32; 8 * cols.len()];
+        for (i, c) in cols.iter().enumerate() {
+            for (r, v) in c.iter().enumerate() {
+                data[r * cols.len() + i] = *v;
+            }
+        }
+        let dets = postprocess(
+            &data,
+            &[1, 8, 4],
+            &classes,
+            &lb,
+            (1280, 720),
+            &PostprocessParams::default(),
+        )
+        .expect("decodes");
+        assert_eq!(dets.len(), 2, "{dets:?}");
+        assert_eq!(dets[0].tower_type, TowerType::B);
+        assert_eq!(dets[0].bbox, PixelBox::new(250.0, 250.0, 275.0, 350.0));
+        assert_eq!(dets[1].tower_type, TowerType::D);
+        assert_eq!(dets[1].bbox.right, 1280.0, "clipped to the frame");
+    }
+
+    #[test]
+    fn a_wrong_shape_is_an_error_not_an_empty_list() {
+        let classes = ClassMap::from_metadata(Some("['A', 'B', 'C', 'D']")).expect("classes");
+        let lb = Letterbox::new(1280, 720, 512, 320);
+        let r = postprocess(
+            &[0.0; 84],
+            &[1, 84, 1],
+            &classes,
+            &lb,
+            (1280, 720),
+            &PostprocessParams::default(),
+        );
+        assert!(r.is_err());
+    }
+}

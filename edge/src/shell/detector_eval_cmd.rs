@@ -1,0 +1,229 @@
+//! `towernav-edge eval-detector`: the seed's Table 1 for a YOLO model on
+//! held-out simulated worlds, rendered here from seeds training never drew
+//! (`towernav-sim dataset --seed 0` draws worlds 0..N of seed 0; this draws
+//! from `--seed`, 1 by default).
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context;
+use comfy_table::Table;
+use serde::Serialize;
+use towernav_protocol::TowerType;
+use towernav_sim::Scenario;
+
+use crate::detector::map_eval::{
+    HEIGHT_BANDS, Labelled, MapAccumulator, MapMetrics, Scored, restrict_to_height,
+};
+use crate::shell::progress::bar;
+use crate::shell::yolo::{DetectorOptions, YoloDetector};
+
+/// The held-out set and where the report goes.
+#[derive(Debug, Clone)]
+pub struct DetectorEvalOptions {
+    pub worlds: u64,
+    pub frames_per_world: u64,
+    pub seed: u64,
+    /// Score at which precision, recall and the height bands are read.
+    pub recall_score: f32,
+}
+
+/// Towers shorter than this are outside the accuracy target (they are still
+/// reported in the height bands).
+pub const TARGET_MIN_HEIGHT_PX: f64 = 40.0;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct DetectorEval {
+    pub model: String,
+    pub input: (u32, u32),
+    pub images: usize,
+    pub all: MetricsJson,
+    pub taller_than_40px: MetricsJson,
+    /// Wall time per frame of `detect` (pre-processing, inference, post-processing), ms.
+    pub latency_ms_p50: f64,
+    pub latency_ms_p99: f64,
+    pub latency_ms_mean: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct MetricsJson {
+    pub precision: f64,
+    pub recall: f64,
+    pub map50: f64,
+    pub map50_95: f64,
+    pub per_class_map50: Vec<(String, f64)>,
+    pub recall_by_height: Vec<(String, f64, usize)>,
+}
+
+impl From<&MapMetrics> for MetricsJson {
+    fn from(m: &MapMetrics) -> Self {
+        Self {
+            precision: m.overall.precision,
+            recall: m.overall.recall,
+            map50: m.overall.ap50,
+            map50_95: m.overall.ap50_95,
+            per_class_map50: TowerType::ALL
+                .iter()
+                .zip(&m.per_class)
+                .map(|(t, c)| (t.to_string(), c.ap50))
+                .collect(),
+            recall_by_height: band_names()
+                .into_iter()
+                .zip(m.recall_by_height)
+                .map(|(n, (r, k))| (n, r, k))
+                .collect(),
+        }
+    }
+}
+
+fn band_names() -> Vec<String> {
+    HEIGHT_BANDS
+        .iter()
+        .map(|(lo, hi)| {
+            if hi.is_infinite() {
+                format!(">{lo:.0} px")
+            } else {
+                format!("{lo:.0}-{hi:.0} px")
+            }
+        })
+        .collect()
+}
+
+/// Run `model` over the held-out worlds and score it.
+pub fn evaluate(
+    model: &Path,
+    detector_options: &DetectorOptions,
+    options: &DetectorEvalOptions,
+) -> anyhow::Result<(DetectorEval, MapMetrics, MapMetrics)> {
+    let mut detector = YoloDetector::load(model, detector_options)?;
+    let classes = TowerType::ALL.len();
+    let mut all = MapAccumulator::new(classes, options.recall_score);
+    let mut tall = MapAccumulator::new(classes, options.recall_score);
+    let mut latencies = Vec::new();
+    let progress = bar(options.worlds * options.frames_per_world, "eval-detector");
+    for w in 0..options.worlds {
+        let world_seed = options.seed.wrapping_mul(1_000_003).wrapping_add(w);
+        let (scenario, conditions) = Scenario::random_crossing(world_seed);
+        let renderer = scenario.renderer();
+        let mut buffers = renderer.buffers();
+        let stride = (scenario.frame_count() / options.frames_per_world.max(1)).max(1);
+        for k in 0..options.frames_per_world {
+            let seq = k * stride;
+            if seq >= scenario.frame_count() {
+                break;
+            }
+            let truth = scenario.truth(seq);
+            scenario.render_into(&renderer, &mut buffers, &truth, &conditions);
+            let t0 = Instant::now();
+            let dets = detector
+                .detect(&buffers.image, seq)
+                .with_context(|| format!("world {world_seed}, frame {seq}"))?;
+            latencies.push(t0.elapsed().as_secs_f64() * 1e3);
+            let labels: Vec<Labelled> = truth
+                .boxes
+                .iter()
+                .map(|b| Labelled {
+                    bbox: b.bbox,
+                    class: b.tower_type.index(),
+                })
+                .collect();
+            let scored: Vec<Scored> = dets
+                .iter()
+                .map(|d| Scored {
+                    bbox: d.bbox,
+                    class: d.tower_type.index(),
+                    score: d.score as f32,
+                })
+                .collect();
+            all.add_image(&labels, &scored);
+            let (labels, scored) = restrict_to_height(&labels, &scored, TARGET_MIN_HEIGHT_PX);
+            tall.add_image(&labels, &scored);
+            progress.inc(1);
+        }
+    }
+    progress.finish_and_clear();
+    latencies.sort_by(f64::total_cmp);
+    let at = |q: f64| {
+        latencies
+            .get(((latencies.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    let (all, tall) = (all.finish(), tall.finish());
+    let info = detector.info();
+    let eval = DetectorEval {
+        model: model.display().to_string(),
+        input: (info.input_width, info.input_height),
+        images: latencies.len(),
+        all: MetricsJson::from(&all),
+        taller_than_40px: MetricsJson::from(&tall),
+        latency_ms_p50: at(0.5),
+        latency_ms_p99: at(0.99),
+        latency_ms_mean: latencies.iter().sum::<f64>() / latencies.len().max(1) as f64,
+    };
+    Ok((eval, all, tall))
+}
+
+/// Table 1: one row per class and the overall row.
+pub fn table(m: &MapMetrics) -> Table {
+    let mut table = Table::new();
+    table.set_header(["class", "labels", "P", "R", "mAP50", "mAP50-95"]);
+    let row = |name: String, c: &crate::detector::map_eval::ClassMetrics| {
+        [
+            name,
+            c.truths.to_string(),
+            format!("{:.3}", c.precision),
+            format!("{:.3}", c.recall),
+            format!("{:.3}", c.ap50),
+            format!("{:.3}", c.ap50_95),
+        ]
+    };
+    for (t, c) in TowerType::ALL.iter().zip(&m.per_class) {
+        table.add_row(row(t.to_string(), c));
+    }
+    table.add_row(row("all".into(), &m.overall));
+    table
+}
+
+pub fn band_table(m: &MapMetrics) -> Table {
+    let mut table = Table::new();
+    table.set_header(["box height", "towers", "recall"]);
+    for (name, (r, n)) in band_names().into_iter().zip(m.recall_by_height) {
+        table.add_row([name, n.to_string(), format!("{r:.3}")]);
+    }
+    table
+}
+
+/// The command: tables on stdout, the numbers as JSON in `out`.
+pub fn write_all(
+    model: &Path,
+    detector_options: &DetectorOptions,
+    options: &DetectorEvalOptions,
+    out: &Path,
+) -> anyhow::Result<()> {
+    let (eval, all, tall) = evaluate(model, detector_options, options)?;
+    println!(
+        "Detector {} ({}x{} input) on {} frames of {} held-out worlds (seed {})\n",
+        eval.model, eval.input.0, eval.input.1, eval.images, options.worlds, options.seed
+    );
+    println!("All towers:\n{}\n", table(&all));
+    println!(
+        "Towers taller than {TARGET_MIN_HEIGHT_PX} px (the target):\n{}\n",
+        table(&tall)
+    );
+    println!(
+        "Recall by box height (score >= {}):\n{}\n",
+        options.recall_score,
+        band_table(&all)
+    );
+    println!(
+        "Latency per 1280x720 frame, pre + inference + post, {} threads: p50 {:.1} ms, p99 {:.1} ms, mean {:.1} ms",
+        detector_options.threads, eval.latency_ms_p50, eval.latency_ms_p99, eval.latency_ms_mean
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let path = out.join("detector-eval.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&eval)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
+}

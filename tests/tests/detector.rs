@@ -1,0 +1,129 @@
+//! The YOLO detector on ONNX Runtime: stand-in exports of both Ultralytics
+//! layouts (`tests/fixtures/make_detector_models.py`) through the whole shell
+//! path, the shipped model on a rendered frame, and each way loading fails.
+
+use std::path::PathBuf;
+
+use image::{Rgb, RgbImage};
+use towernav_edge::detector::Layout;
+use towernav_edge::shell::yolo::{DetectorOptions, YoloDetector};
+use towernav_geometry::PixelBox;
+use towernav_protocol::TowerType;
+use towernav_sim::{Conditions, Scenario, World};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(name)
+}
+
+fn load(path: &std::path::Path) -> Result<YoloDetector, String> {
+    YoloDetector::load(path, &DetectorOptions::default()).map_err(|e| e.to_string())
+}
+
+#[test]
+fn both_layouts_run_end_to_end_and_map_boxes_back_to_the_frame() {
+    for (name, layout) in [
+        ("fake-v8-towers.onnx", Layout::V8),
+        ("fake-v5-towers.onnx", Layout::V5),
+    ] {
+        let mut detector = load(&fixture(name)).expect("loads");
+        assert_eq!(detector.info().layout, layout, "{name}");
+        assert_eq!(
+            (detector.info().input_width, detector.info().input_height),
+            (64, 32)
+        );
+        // A white 128x64 frame: the model's table comes out as written, at half scale.
+        let frame = RgbImage::from_pixel(128, 64, Rgb([255, 255, 255]));
+        let dets = detector.detect(&frame, 0).expect("runs");
+        assert_eq!(
+            dets.len(),
+            1,
+            "{name}: the 0.1 candidate is below the threshold"
+        );
+        assert_eq!(dets[0].tower_type, TowerType::B);
+        assert!((dets[0].score - 0.9).abs() < 1e-6);
+        assert!(
+            dets[0].bbox.iou(&PixelBox::new(56.0, 16.0, 72.0, 48.0)) > 0.999,
+            "{name}: {:?}",
+            dets[0].bbox
+        );
+        // A black frame scales every score to zero: no detections.
+        let dark = RgbImage::from_pixel(128, 64, Rgb([0, 0, 0]));
+        assert!(detector.detect(&dark, 1).expect("runs").is_empty());
+    }
+}
+
+#[test]
+fn wrong_models_are_refused_at_load_saying_why() {
+    let coco = load(&fixture("fake-v8-coco.onnx")).err().expect("refused");
+    assert!(
+        coco.contains("80 classes") && coco.contains("tower types"),
+        "{coco}"
+    );
+    let unnamed = load(&fixture("fake-no-names.onnx")).err().expect("refused");
+    assert!(unnamed.contains("no `names` metadata"), "{unnamed}");
+    let reid = load(&fixture("reid-tiny.onnx")).err().expect("refused");
+    assert!(reid.contains("reid-tiny.onnx"), "{reid}");
+
+    let dir = tempfile::tempdir().expect("tempdir");
+    let corrupt = dir.path().join("corrupt.onnx");
+    std::fs::write(&corrupt, b"\x08\x07 definitely not a protobuf").expect("write");
+    let err = load(&corrupt).err().expect("refused");
+    assert!(
+        err.contains("corrupt.onnx") && err.contains("not a loadable ONNX model"),
+        "{err}"
+    );
+    let missing = load(&dir.path().join("missing.onnx"))
+        .err()
+        .expect("refused");
+    assert!(missing.contains("cannot read"), "{missing}");
+}
+
+#[test]
+fn an_empty_frame_is_an_error_naming_the_frame() {
+    let mut detector = load(&fixture("fake-v8-towers.onnx")).expect("loads");
+    let err = detector
+        .detect(&RgbImage::new(0, 0), 17)
+        .expect_err("empty")
+        .to_string();
+    assert!(err.contains("frame 17"), "{err}");
+}
+
+/// The shipped model finds every clearly visible tower (taller than 40 px,
+/// not cut by the frame edge, less than a quarter hidden) with IoU >= 0.6 and the
+/// right type, on frames of the seed's path it was never trained on.
+#[test]
+fn the_shipped_model_finds_the_towers_in_rendered_frames() {
+    let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/towers.onnx");
+    let mut detector = load(&model).expect("the shipped model loads");
+    let scenario = Scenario::preset(World::seed_field(), "seed-path-1", 3).expect("preset");
+    let renderer = scenario.renderer();
+    let mut buffers = renderer.buffers();
+    let mut checked = 0;
+    for time_s in [10.0, 24.0, 60.0, 120.0] {
+        let truth = scenario.truth((time_s * scenario.fps) as u64);
+        scenario.render_into(&renderer, &mut buffers, &truth, &Conditions::default());
+        let dets = detector.detect(&buffers.image, truth.seq).expect("runs");
+        for t in truth
+            .boxes
+            .iter()
+            .filter(|t| t.bbox.height() > 40.0 && !t.truncated && t.occluded < 0.25)
+        {
+            let best = dets
+                .iter()
+                .filter(|d| d.tower_type == t.tower_type)
+                .map(|d| d.bbox.iou(&t.bbox))
+                .fold(0.0, f64::max);
+            assert!(
+                best >= 0.6,
+                "t={time_s} s: tower {} ({}, {:.0} px) found with IoU {best:.2}; detections {dets:?}",
+                t.tower_id,
+                t.tower_type,
+                t.bbox.height()
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 8, "only {checked} towers were checked");
+}

@@ -1,0 +1,159 @@
+#!/usr/bin/env python3
+"""Train towernav's tower detector from scratch on the simulator's YOLO dataset.
+
+Run through `cargo xtask train` (which renders the dataset and installs the
+pinned environment first), or by hand:
+
+    .venv-train/bin/python training/train.py --data target/train/dataset --out target/train/run
+
+It trains a YOLOv5-family model (Ultralytics `yolov5n.yaml`, no pretrained
+weights: nothing can be downloaded here) on the CPU within a wall-clock budget,
+resumes from `last.pt` when a run was interrupted, exports ONNX (opset 17,
+class names in the metadata) at the edge's input size, and evaluates on the
+held-out test worlds. Everything it writes stays under --out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+
+def parse_args() -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", type=Path, required=True, help="dataset folder holding data.yaml")
+    p.add_argument("--out", type=Path, required=True, help="run folder (checkpoints, export, metrics)")
+    p.add_argument("--model", default="yolov5n.yaml", help="Ultralytics architecture (built from scratch)")
+    p.add_argument("--imgsz", type=int, default=512, help="training size (square mosaics)")
+    p.add_argument("--export-h", type=int, default=320, help="exported input height (1280x720 letterboxed)")
+    p.add_argument("--export-w", type=int, default=512, help="exported input width")
+    p.add_argument("--hours", type=float, default=1.6, help="wall-clock budget for the training loop")
+    p.add_argument("--epochs", type=int, default=60, help="upper bound; the time budget usually ends first")
+    p.add_argument("--batch", type=int, default=8, help="small batches: more steps in a short CPU budget")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--threads", type=int, default=os.cpu_count() or 2)
+    p.add_argument("--seed", type=int, default=0)
+    return p.parse_args()
+
+
+def main() -> int:
+    args = parse_args()
+    out = args.out.resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    # Keep Ultralytics' settings inside the run and never reach the network.
+    os.environ.setdefault("YOLO_CONFIG_DIR", str(out / "ultralytics-config"))
+    os.environ["YOLO_OFFLINE"] = "1"
+    import torch
+    from ultralytics import YOLO, settings
+
+    settings.update({"sync": False})
+    torch.set_num_threads(args.threads)
+
+    data_yaml = (args.data / "data.yaml").resolve()
+    if not data_yaml.is_file():
+        print(f"error: {data_yaml} not found; render it with `towernav-sim dataset --out {args.data}`", file=sys.stderr)
+        return 2
+
+    run_dir = out / "train"
+    last = run_dir / "weights" / "last.pt"
+    best = run_dir / "weights" / "best.pt"
+    done_marker = out / "train.done"
+    started = time.time()
+    if done_marker.exists() and best.exists():
+        print(f"training already finished ({best}); exporting and evaluating only")
+    elif last.exists():
+        print(f"resuming from {last}")
+        YOLO(str(last)).train(resume=True)
+        done_marker.write_text("ok\n")
+    else:
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        model = YOLO(args.model)  # a .yaml: random init, no download
+        model.train(
+            data=str(data_yaml),
+            epochs=args.epochs,
+            time=args.hours,
+            imgsz=args.imgsz,
+            batch=args.batch,
+            workers=args.workers,
+            device="cpu",
+            cache="ram",
+            pretrained=False,
+            amp=False,
+            plots=False,
+            project=str(out),
+            name="train",
+            exist_ok=True,
+            seed=args.seed,
+            deterministic=False,
+            patience=100,
+            warmup_epochs=1.0,
+            close_mosaic=2,
+            mosaic=1.0,
+            scale=0.5,
+            fliplr=0.5,
+            verbose=True,
+        )
+        done_marker.write_text("ok\n")
+    train_s = time.time() - started
+
+    if not best.exists():
+        print(f"error: no {best} after training", file=sys.stderr)
+        return 1
+    model = YOLO(str(best))
+    onnx_path = Path(
+        model.export(
+            format="onnx",
+            opset=17,
+            imgsz=(args.export_h, args.export_w),
+            simplify=True,
+            dynamic=False,
+            half=False,
+            device="cpu",
+        )
+    )
+    exported = out / "towers.onnx"
+    shutil.copyfile(onnx_path, exported)
+
+    metrics = {}
+    for split in ("val", "test"):
+        r = model.val(
+            data=str(data_yaml),
+            split=split,
+            imgsz=args.imgsz,
+            batch=args.batch,
+            device="cpu",
+            plots=False,
+            project=str(out),
+            name=f"val-{split}",
+            exist_ok=True,
+        )
+        metrics[split] = {
+            "precision": float(r.box.mp),
+            "recall": float(r.box.mr),
+            "map50": float(r.box.map50),
+            "map50_95": float(r.box.map),
+            "per_class_map50_95": {model.names[int(c)]: float(m) for c, m in zip(r.box.ap_class_index, r.box.maps[r.box.ap_class_index])},
+        }
+    summary = {
+        "model": args.model,
+        "imgsz": args.imgsz,
+        "export_input": [args.export_h, args.export_w],
+        "classes": model.names,
+        "train_loop_seconds_this_call": round(train_s, 1),
+        "onnx": str(exported),
+        "onnx_bytes": exported.stat().st_size,
+        "ultralytics_metrics": metrics,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,160 @@
+//! `cargo xtask train`: the detector's whole training pipeline in one command.
+//!
+//! 1. installs the pinned training environment (`training/requirements.txt`,
+//!    Ultralytics on the CPU, from the Python package index) into `.venv-train/`;
+//! 2. renders the simulator's YOLO dataset (`towernav-sim dataset`) into
+//!    `target/train/dataset` unless it is there;
+//! 3. runs `training/train.py`, detached, logging to `target/train/train.log`:
+//!    it trains from scratch within a wall-clock budget, resumes from its last
+//!    checkpoint when run again after an interruption, exports ONNX and evaluates.
+//!
+//! `--foreground` waits for it; `--ship` copies the exported model into
+//! `models/` once a run has finished.
+
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use anyhow::{Context, bail};
+
+use crate::{cargo, run, target_dir};
+
+pub struct TrainOptions {
+    pub foreground: bool,
+    pub ship: bool,
+    pub hours: f64,
+    pub worlds: u32,
+    pub frames_per_world: u32,
+}
+
+pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
+    let work = target_dir(root).join("train");
+    let run_dir = work.join("run");
+    if options.ship {
+        return ship(root, &run_dir);
+    }
+    let pid_file = work.join("train.pid");
+    if let Some(pid) = running(&pid_file) {
+        bail!(
+            "training is already running (pid {pid}); follow it with `tail -f {}`",
+            work.join("train.log").display()
+        );
+    }
+    let python = ensure_venv(root)?;
+    let dataset = work.join("dataset");
+    if !dataset.join("data.yaml").exists() {
+        cargo(root, &["build", "--release", "-p", "towernav-sim"])?;
+        run(
+            Command::new(target_dir(root).join("release").join("towernav-sim"))
+                .arg("dataset")
+                .arg("--out")
+                .arg(&dataset)
+                .args([
+                    "--worlds",
+                    &options.worlds.to_string(),
+                    "--frames-per-world",
+                    &options.frames_per_world.to_string(),
+                    "--seed",
+                    "0",
+                ]),
+        )?;
+    }
+    let mut cmd = Command::new(&python);
+    cmd.arg(root.join("training").join("train.py"))
+        .arg("--data")
+        .arg(&dataset)
+        .arg("--out")
+        .arg(&run_dir)
+        .args(["--hours", &options.hours.to_string()])
+        .current_dir(root);
+    if options.foreground {
+        return run(&mut cmd);
+    }
+    std::fs::create_dir_all(&work)?;
+    let log_path = work.join("train.log");
+    let log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&log_path)
+        .with_context(|| format!("opening {}", log_path.display()))?;
+    // Its own process group: the run outlives this command and the terminal.
+    let child = cmd
+        .stdin(Stdio::null())
+        .stdout(log.try_clone()?)
+        .stderr(log)
+        .process_group(0)
+        .spawn()
+        .with_context(|| format!("starting {cmd:?}"))?;
+    std::fs::write(&pid_file, child.id().to_string())?;
+    eprintln!(
+        "xtask: training in the background (pid {}), budget {} h; follow with `tail -f {}`.\n\
+         Run `cargo xtask train` again after an interruption to resume from the last checkpoint,\n\
+         and `cargo xtask train --ship` when it has finished to copy the model into models/.",
+        child.id(),
+        options.hours,
+        log_path.display()
+    );
+    Ok(())
+}
+
+/// The pid in `pid_file` if that process is still alive.
+fn running(pid_file: &Path) -> Option<u32> {
+    let pid: u32 = std::fs::read_to_string(pid_file)
+        .ok()?
+        .trim()
+        .parse()
+        .ok()?;
+    Path::new(&format!("/proc/{pid}")).exists().then_some(pid)
+}
+
+/// `.venv-train/bin/python` with the pinned requirements installed (once per
+/// version of the requirements file).
+fn ensure_venv(root: &Path) -> anyhow::Result<PathBuf> {
+    let venv = root.join(".venv-train");
+    let python = venv.join("bin").join("python");
+    let requirements = root.join("training").join("requirements.txt");
+    let wanted = std::fs::read_to_string(&requirements)
+        .with_context(|| format!("reading {}", requirements.display()))?;
+    let stamp = venv.join("installed-requirements.txt");
+    if python.exists() && std::fs::read_to_string(&stamp).ok().as_deref() == Some(&wanted) {
+        return Ok(python);
+    }
+    if !python.exists() {
+        run(Command::new("python3").args(["-m", "venv"]).arg(&venv))?;
+    }
+    run(Command::new(&python)
+        .args(["-m", "pip", "install", "--quiet", "-r"])
+        .arg(&requirements))?;
+    std::fs::write(&stamp, wanted)?;
+    Ok(python)
+}
+
+/// Copy the finished run's model and numbers into `models/`.
+fn ship(root: &Path, run_dir: &Path) -> anyhow::Result<()> {
+    let onnx = run_dir.join("towers.onnx");
+    let summary = run_dir.join("summary.json");
+    if !summary.exists() || !onnx.exists() {
+        bail!(
+            "no finished run in {} (it writes towers.onnx and summary.json when done)",
+            run_dir.display()
+        );
+    }
+    let size = std::fs::metadata(&onnx)?.len();
+    if size > 15 * 1024 * 1024 {
+        bail!(
+            "{} is {size} bytes; the shipped model must be 15 MB at most",
+            onnx.display()
+        );
+    }
+    let models = root.join("models");
+    std::fs::create_dir_all(&models)?;
+    std::fs::copy(&onnx, models.join("towers.onnx"))?;
+    std::fs::copy(&summary, models.join("towers.training.json"))?;
+    eprintln!(
+        "xtask: shipped {} ({size} bytes) and its training summary into {}; \
+         update models/README.md with `towernav-edge eval-detector`'s numbers",
+        onnx.display(),
+        models.display()
+    );
+    Ok(())
+}
