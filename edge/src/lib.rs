@@ -5,6 +5,7 @@
 //! and it imports no tokio, zenoh or ort. `shell` drives it over Zenoh.
 
 pub mod assignment;
+pub mod autopilot;
 pub mod detector;
 pub mod filter;
 pub mod identity;

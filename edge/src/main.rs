@@ -1,25 +1,16 @@
-//! `towernav-edge`: the onboard daemon. Today its frame source is the simulator.
+//! `towernav-edge`: the onboard daemon, its demo, and the evaluations.
 
 use std::path::PathBuf;
-use std::time::Duration;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
-use towernav_edge::LandmarkMap;
 use towernav_edge::detector::PostprocessParams;
-use towernav_edge::localizer::Method;
-use towernav_edge::report::FlightReport;
-use towernav_edge::shell::collector::{PoseCollector, wait_for_peer};
+use towernav_edge::shell::daemon::config::EdgeConfig;
 use towernav_edge::shell::detector_eval_cmd::DetectorEvalOptions;
-use towernav_edge::shell::landmark_sync::LandmarkSync;
-use towernav_edge::shell::landmarks_source::load_landmarks;
-use towernav_edge::shell::node::{EdgeNode, open_session};
-use towernav_edge::shell::rendered_detector::RenderedDetector;
-use towernav_edge::shell::sim_flight::{FlightRecord, SimFlightOptions, fly};
-use towernav_edge::shell::yolo::{DetectorOptions, YoloDetector};
-use towernav_protocol::NodeId;
-use towernav_protocol::session::Endpoints;
-use towernav_sim::{Conditions, Scenario};
+use towernav_edge::shell::edge_cmd::{run_edge, spawn_signal_watch};
+use towernav_edge::shell::yolo::DetectorOptions;
 
 #[derive(Parser)]
 #[command(about = "towernav edge daemon: landmark localization from a forward camera")]
@@ -30,10 +21,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Fly the simulated seed flight through the pipeline and publish over Zenoh.
+    /// The onboard daemon: frames from the simulator, an image folder, a video,
+    /// RTSP or V4L2; poses over Zenoh and MAVLink.
     Run(RunArgs),
-    /// Run the flight with a listener on loopback and print the accuracy report.
+    /// Run the daemon with a listener on loopback; print the accuracy report and
+    /// write trajectory and error plots to target/demo.
     Demo(RunArgs),
+    /// Print the default configuration as TOML (a starting point for --config).
+    PrintConfig,
     /// The seed's Table 2: SORT, ByteTrack-style and ours on the seed's paths and
     /// random fields (oracle detector), with MOT-challenge result files.
     EvalTracking {
@@ -102,46 +97,173 @@ impl DetectorArgs {
     }
 }
 
-#[derive(Args)]
+/// Flags override the config file (`--config`), which overrides the defaults
+/// (`towernav-edge print-config` shows them all).
+#[derive(Args, Default)]
 struct RunArgs {
-    #[arg(long, default_value = "demo")]
-    fleet: NodeId,
-    #[arg(long, default_value = "uav1")]
-    uav: NodeId,
-    /// Zenoh endpoint to listen on (ground stations connect here).
-    #[arg(long, default_value = "tcp/127.0.0.1:7447")]
+    /// TOML config file.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    #[arg(long)]
+    fleet: Option<String>,
+    #[arg(long)]
+    uav: Option<String>,
+    /// Zenoh endpoint to listen on (repeatable; ground stations connect here).
+    #[arg(long)]
     listen: Vec<String>,
-    /// Zenoh endpoint to connect to, e.g. a router (repeatable).
+    /// Zenoh endpoint to connect to: a peer, or a router (repeatable).
     #[arg(long)]
     connect: Vec<String>,
+    /// Frame source: sim, images, video, rtsp, v4l2.
+    #[arg(long, value_parser = ["sim", "images", "video", "rtsp", "v4l2"])]
+    source: Option<String>,
+    /// Image folder, video file, rtsp:// URL or /dev/videoN.
+    #[arg(long)]
+    path: Option<String>,
+    /// Frame rate of an image folder or video file.
+    #[arg(long)]
+    fps: Option<f64>,
     /// Simulation seed: detector noise, misses, false positives, IMU noise.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Playback speed relative to real time; 0 runs as fast as possible.
-    #[arg(long, default_value_t = 4.0)]
-    speed: f64,
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Simulator playback speed relative to real time; 0 runs as fast as possible.
+    #[arg(long)]
+    speed: Option<f64>,
+    /// Simulated flight plan (seed-path-1, seed-path-2, straight, out-and-back, lawnmower);
+    /// default: the skeleton's level flight.
+    #[arg(long)]
+    flight: Option<String>,
+    /// Stop after this many frames.
+    #[arg(long)]
+    max_frames: Option<u64>,
+    /// Attitude input: source, csv, mavlink.
+    #[arg(long, value_parser = ["source", "csv", "mavlink"])]
+    attitude: Option<String>,
+    /// The attitude CSV log (time_s,roll_deg,pitch_deg,heading_deg).
+    #[arg(long)]
+    attitude_log: Option<PathBuf>,
     /// Landmarks to localize against (.csv or a landmark database); default: the simulated world's.
     #[arg(long, conflicts_with = "replica")]
     landmarks: Option<PathBuf>,
     /// Keep a replica of the ground station's landmarks in this file and follow its changes.
     #[arg(long)]
     replica: Option<PathBuf>,
-    /// Fly a quadrotor plan over the seed field (seed-path-1, seed-path-2, straight,
-    /// out-and-back, lawnmower) with the realistic oracle; default: the skeleton's level flight.
-    #[arg(long)]
-    flight: Option<String>,
     /// Per-frame estimator: ours (`rays`) or the seed's baseline (`seed`).
-    #[arg(long, default_value = "rays", value_parser = ["rays", "seed"])]
-    method: String,
+    #[arg(long, value_parser = ["rays", "seed"])]
+    method: Option<String>,
     /// Publish raw per-frame fixes instead of the EKF's estimates.
     #[arg(long)]
     no_filter: bool,
-    /// Boxes from the YOLO model on rendered frames (`yolo`), or from the
-    /// simulator's truth with noise (`oracle`, no rendering).
-    #[arg(long, default_value = "yolo", value_parser = ["yolo", "oracle"])]
-    detector: String,
-    #[command(flatten)]
-    yolo: DetectorArgs,
+    /// `yolo` (the model on rendered or camera frames) or `oracle` (simulator truth with noise).
+    #[arg(long, value_parser = ["yolo", "oracle"])]
+    detector: Option<String>,
+    /// YOLO model (Ultralytics ONNX export, classes A-D).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// ONNX Runtime threads.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Inference on CUDA (build with `--features cuda`).
+    #[arg(long)]
+    cuda: bool,
+    /// Send GPS_INPUT/ODOMETRY to the autopilot at this MAVLink address (udpout:host:port).
+    #[arg(long)]
+    mavlink: Option<String>,
+    /// Write every published estimate as a JSON line here.
+    #[arg(long)]
+    jsonl: Option<PathBuf>,
+    /// Write annotated frames (JPEG) into this folder.
+    #[arg(long)]
+    annotate: Option<PathBuf>,
+}
+
+/// A config enum from its flag spelling (the same as in the TOML file).
+fn kind<T: serde::de::DeserializeOwned>(v: &str) -> anyhow::Result<T> {
+    Ok(toml::Value::String(v.to_string()).try_into()?)
+}
+
+impl RunArgs {
+    fn config(&self) -> anyhow::Result<EdgeConfig> {
+        let mut c = match &self.config {
+            Some(path) => EdgeConfig::read(path)?,
+            None => EdgeConfig::default(),
+        };
+        if let Some(v) = &self.fleet {
+            c.fleet = v.clone();
+        }
+        if let Some(v) = &self.uav {
+            c.uav = v.clone();
+        }
+        if !self.listen.is_empty() {
+            c.zenoh.listen = self.listen.clone();
+        }
+        if !self.connect.is_empty() {
+            c.zenoh.connect = self.connect.clone();
+        }
+        if let Some(v) = &self.source {
+            c.source.kind = kind(v)?;
+        }
+        if let Some(v) = &self.path {
+            c.source.path = Some(v.clone());
+        }
+        if let Some(v) = self.fps {
+            c.source.fps = v;
+        }
+        if let Some(v) = self.seed {
+            c.source.seed = v;
+        }
+        if let Some(v) = self.speed {
+            c.source.speed = v;
+        }
+        if let Some(v) = &self.flight {
+            c.source.flight = Some(v.clone());
+        }
+        if let Some(v) = self.max_frames {
+            c.source.max_frames = Some(v);
+        }
+        if let Some(v) = &self.attitude {
+            c.attitude.kind = kind(v)?;
+        }
+        if let Some(v) = &self.attitude_log {
+            c.attitude.path = Some(v.clone());
+        }
+        if let Some(v) = &self.landmarks {
+            c.landmarks.file = Some(v.clone());
+        }
+        if let Some(v) = &self.replica {
+            c.landmarks.replica = Some(v.clone());
+        }
+        if let Some(v) = &self.method {
+            c.pipeline.method = v.clone();
+        }
+        if self.no_filter {
+            c.pipeline.filter = false;
+        }
+        if let Some(v) = &self.detector {
+            c.detector.kind = kind(v)?;
+        }
+        if let Some(v) = &self.model {
+            c.detector.model = v.clone();
+        }
+        if let Some(v) = self.threads {
+            c.detector.threads = v;
+        }
+        if self.cuda {
+            c.detector.cuda = true;
+        }
+        if let Some(v) = &self.mavlink {
+            c.mavlink.enabled = true;
+            c.mavlink.address = v.clone();
+        }
+        if let Some(v) = &self.jsonl {
+            c.output.jsonl = Some(v.clone());
+        }
+        if let Some(v) = &self.annotate {
+            c.output.annotated = Some(v.clone());
+        }
+        c.validate()?;
+        Ok(c)
+    }
 }
 
 fn main() -> anyhow::Result<()> {
@@ -153,6 +275,10 @@ fn main() -> anyhow::Result<()> {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    if let Command::PrintConfig = &cli.command {
+        print!("{}", EdgeConfig::default().to_toml());
+        return Ok(());
+    }
     if let Command::EvalLocalization { out, seed } = &cli.command {
         return towernav_edge::shell::loc_eval_cmd::write_all(out, *seed);
     }
@@ -189,7 +315,8 @@ fn main() -> anyhow::Result<()> {
         match cli.command {
             Command::Run(args) => run(args, false).await,
             Command::Demo(args) => run(args, true).await,
-            Command::EvalLocalization { .. }
+            Command::PrintConfig
+            | Command::EvalLocalization { .. }
             | Command::EvalTracking { .. }
             | Command::EvalDetector { .. } => Ok(()),
         }
@@ -197,134 +324,10 @@ fn main() -> anyhow::Result<()> {
 }
 
 async fn run(args: RunArgs, demo: bool) -> anyhow::Result<()> {
-    let scenario = match &args.flight {
-        Some(plan) => Scenario::preset(towernav_sim::World::seed_field(), plan, args.seed)?,
-        None => Scenario::seed(args.seed),
-    };
-    let endpoints = Endpoints {
-        listen: args.listen.clone(),
-        connect: args.connect.clone(),
-    };
-    let session = open_session(&endpoints).await?;
-    let mut sync = match &args.replica {
-        Some(path) => {
-            // Zenoh retries links every few seconds: give the ground station a moment to reach us.
-            if wait_for_peer(&session, Duration::from_secs(6))
-                .await
-                .is_err()
-            {
-                tracing::warn!("no peer yet; asking for landmarks anyway");
-            }
-            let (sync, source) = LandmarkSync::start(
-                &session,
-                args.fleet.clone(),
-                path.clone(),
-                Duration::from_secs(3),
-            )
-            .await?;
-            println!(
-                "landmarks: {} towers at revision {} ({source:?})",
-                sync.replica().len(),
-                sync.replica().revision
-            );
-            Some(sync)
-        }
-        None => None,
-    };
-    let records = match (&sync, &args.landmarks) {
-        (Some(sync), _) => sync.replica().records(),
-        (None, Some(path)) => load_landmarks(path)?,
-        (None, None) => scenario.world.landmarks(),
-    };
-    let map = LandmarkMap::from_records(&records, &scenario.world.datum);
-    let node = EdgeNode::new(session, args.fleet.clone(), args.uav.clone()).await?;
-
-    let listener = if demo {
-        let connect = args
-            .listen
-            .first()
-            .cloned()
-            .context("the demo needs a --listen endpoint to listen on")?;
-        let session = open_session(&Endpoints {
-            listen: vec![],
-            connect: vec![connect],
-        })
-        .await?;
-        let collector = PoseCollector::start(&session, args.fleet.clone()).await?;
-        wait_for_peer(&session, Duration::from_secs(10)).await?;
-        Some((session, collector))
-    } else {
-        None
-    };
-
-    println!(
-        "towernav edge: fleet {} uav {} on {:?}",
-        args.fleet, args.uav, args.listen
-    );
-    let endpoint = args
-        .listen
-        .first()
-        .map_or("tcp/127.0.0.1:7447", String::as_str);
-    println!(
-        "watch live: `cargo xtask gs` in another terminal, or `towernav-gs --db <towers.sqlite> --connect {endpoint}`"
-    );
-    println!(
-        "            (start it before or after the edge; `--speed 1` plays the flight in real time)"
-    );
-
-    let bar = towernav_edge::shell::progress::bar(scenario.frame_count(), "flying");
-    let options = SimFlightOptions {
-        speed: (args.speed > 0.0).then_some(args.speed),
-        method: if args.method == "seed" {
-            Method::Seed
-        } else {
-            Method::Rays
-        },
-        filter: !args.no_filter,
-        ..SimFlightOptions::default()
-    };
-    let mut detector = match args.detector.as_str() {
-        "yolo" => {
-            let yolo = YoloDetector::load(&args.yolo.model, &args.yolo.options()).with_context(|| {
-                "loading the detector (run `cargo xtask setup-ort` for ONNX Runtime, or fly with `--detector oracle`)"
-            })?;
-            Some(RenderedDetector::new(
-                &scenario,
-                yolo,
-                Conditions::default(),
-            ))
-        }
-        _ => None,
-    };
-    let record: FlightRecord = fly(
-        &node,
-        &scenario,
-        map,
-        options,
-        sync.as_mut(),
-        detector.as_mut(),
-        |n| bar.set_position(n),
-    )
-    .await?;
-    bar.finish_and_clear();
-
-    if let Some((_session, collector)) = listener {
-        let received = collector
-            .drain(record.poses_published as usize, Duration::from_secs(3))
-            .await;
-        if collector.rejected() > 0 {
-            println!("warning: {} poses did not decode", collector.rejected());
-        }
-        let report = FlightReport::new(&record, &received, scenario.fps);
-        println!(
-            "\ntowernav demo report (seed field, 18 towers, seed {})\n{report}",
-            args.seed
-        );
-    } else {
-        println!(
-            "flew {} frames, published {} poses",
-            record.frames, record.poses_published
-        );
-    }
+    let config = args.config()?;
+    let out = PathBuf::from("target/demo");
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_signal_watch(stop.clone());
+    run_edge(&config, demo.then_some(out.as_path()), stop).await?;
     Ok(())
 }

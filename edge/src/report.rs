@@ -4,7 +4,7 @@ use std::fmt;
 
 use towernav_protocol::PoseEstimate;
 
-use crate::shell::sim_flight::FlightRecord;
+use crate::shell::flight_record::FlightRecord;
 use crate::sim_eval::{ErrorStats, error_stats};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -21,9 +21,9 @@ pub struct FlightReport {
     pub binding_accuracy: f64,
     /// Of track-frames on a tower the tracker must cover, the share bound.
     pub bound_share: f64,
-    /// With the real detector: mean milliseconds per frame rendering and
-    /// detecting, and frames whose detection failed.
-    pub detector_ms: Option<(f64, f64, u64)>,
+    /// With a real detector: its name, mean milliseconds per frame
+    /// (pre-processing, inference, post-processing), and frames that failed.
+    pub detector: Option<(String, f64, u64)>,
 }
 
 impl FlightReport {
@@ -53,11 +53,10 @@ impl FlightReport {
             horizontal: error_stats(&errors),
             binding_accuracy: identity.binding_accuracy,
             bound_share: identity.binding_coverage,
-            detector_ms: (record.detect_seconds > 0.0).then(|| {
-                let per = 1e3 / record.frames.max(1) as f64;
+            detector: record.detector.clone().map(|name| {
                 (
-                    record.render_seconds * per,
-                    record.detect_seconds * per,
+                    name,
+                    1e3 * record.detect_seconds / record.frames.max(1) as f64,
                     record.detector_errors,
                 )
             }),
@@ -78,11 +77,11 @@ impl fmt::Display for FlightReport {
             "processing rate    {:.0} frames/s in the pipeline core (one thread), {:.0} frames/s end to end",
             self.core_rate_hz, self.wall_rate_hz
         )?;
-        if let Some((render, detect, errors)) = self.detector_ms {
+        if let Some((name, detect, errors)) = &self.detector {
             writeln!(
                 f,
-                "detector           YOLO on rendered frames: {detect:.1} ms per frame (pre + inference + post), \
-                 rendering {render:.1} ms; {errors} frames failed"
+                "detector           {name} on rendered frames: {detect:.1} ms per frame (pre + inference + post); \
+                 {errors} frames failed"
             )?;
         } else {
             writeln!(

@@ -25,6 +25,21 @@ impl Attitude {
         }
     }
 
+    /// From an autopilot's NED/FRD Euler angles (MAVLink ATTITUDE): roll and
+    /// pitch mean the same in both conventions; yaw is clockwise from north there.
+    pub fn from_ned(roll: f64, pitch: f64, yaw_from_north: f64) -> Self {
+        Self {
+            roll,
+            pitch,
+            yaw: wrap_angle(std::f64::consts::FRAC_PI_2 - yaw_from_north),
+        }
+    }
+
+    /// Yaw clockwise from north, in (-pi, pi], for NED consumers.
+    pub fn yaw_from_north(&self) -> f64 {
+        wrap_angle(std::f64::consts::FRAC_PI_2 - self.yaw)
+    }
+
     pub fn world_from_body(&self) -> UnitQuaternion<f64> {
         UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.yaw)
             * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -self.pitch)
@@ -101,7 +116,22 @@ mod tests {
         assert!((heading_deg_from_yaw(0.0) - 90.0).abs() < 1e-9);
     }
 
+    #[test]
+    fn ned_yaw_is_clockwise_from_north() {
+        let east = Attitude::from_ned(0.0, 0.0, FRAC_PI_2);
+        assert!(east.yaw.abs() < 1e-12, "heading 90 is ENU yaw 0");
+        let north = Attitude::from_ned(0.1, -0.2, 0.0);
+        assert!((north.yaw - FRAC_PI_2).abs() < 1e-12);
+        assert_eq!((north.roll, north.pitch), (0.1, -0.2));
+    }
+
     proptest! {
+        #[test]
+        fn ned_conversion_round_trips(yaw in -3.1f64..3.1) {
+            let a = Attitude::from_ned(0.0, 0.0, yaw);
+            prop_assert!((wrap_angle(a.yaw_from_north() - yaw)).abs() < 1e-12);
+        }
+
         #[test]
         fn wrap_angle_stays_in_range_and_keeps_direction(a in -50.0f64..50.0) {
             let w = wrap_angle(a);

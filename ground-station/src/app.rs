@@ -233,6 +233,12 @@ mod tests {
             datum_lat_deg: 30.52,
             datum_lon_deg: 114.36,
             datum_alt_m: 25.0,
+            health: towernav_protocol::Health::Ok,
+            frames_dropped: 0,
+            frames_failed: 0,
+            latency_p50_ms: 3.0,
+            latency_p99_ms: 9.0,
+            detector: "oracle".into(),
         }))
         .expect("send");
         let now = std::cell::Cell::new(0.0);

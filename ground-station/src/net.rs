@@ -74,6 +74,8 @@ async fn listen(
                 Topic::Status => decode(&bytes).map(NetEvent::Status),
                 // Corrections and their acks are the ground station's own traffic.
                 Topic::Correction | Topic::CorrectionAck => continue,
+                // The camera view is not drawn yet: raw boxes and previews are skipped.
+                Topic::Detections | Topic::Preview => continue,
             }
             .unwrap_or_else(|e| NetEvent::Rejected {
                 key: key.clone(),

@@ -203,9 +203,24 @@ mod tests {
         }
 
         #[test]
+        fn previews_round_trip_any_bytes(jpeg in proptest::collection::vec(any::<u8>(), 0..512), seq in any::<u64>()) {
+            let p = Preview {
+                uav: NodeId::new("u1").expect("valid"),
+                time_s: 1.5,
+                seq,
+                frame_width: 1280,
+                frame_height: 720,
+                jpeg,
+            };
+            let back: Preview = decode(&encode(&p).expect("encode")).expect("decode");
+            prop_assert_eq!(back, p);
+        }
+
+        #[test]
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
             let _ = decode::<PoseEstimate>(&bytes);
             let _ = decode::<LandmarkChange>(&bytes);
+            let _ = decode::<Preview>(&bytes);
         }
     }
 }

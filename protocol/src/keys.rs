@@ -21,15 +21,21 @@ pub enum Topic {
     Correction,
     /// [`crate::CorrectionAck`], edge -> ground station.
     CorrectionAck,
+    /// [`crate::DetectionReport`], edge -> anyone.
+    Detections,
+    /// [`crate::Preview`], edge -> anyone, a few times a second.
+    Preview,
 }
 
 impl Topic {
-    pub const ALL: [Topic; 5] = [
+    pub const ALL: [Topic; 7] = [
         Topic::Pose,
         Topic::Tracks,
         Topic::Status,
         Topic::Correction,
         Topic::CorrectionAck,
+        Topic::Detections,
+        Topic::Preview,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -39,6 +45,8 @@ impl Topic {
             Topic::Status => "status",
             Topic::Correction => "correction",
             Topic::CorrectionAck => "correction_ack",
+            Topic::Detections => "detections",
+            Topic::Preview => "preview",
         }
     }
 
@@ -96,6 +104,29 @@ impl Keys {
     /// Every per-UAV key of the fleet, whatever the topic.
     pub fn all_uavs_any_topic(&self) -> String {
         format!("{ROOT}/{}/uav/*/*", self.fleet)
+    }
+
+    /// The liveliness token an edge holds while it runs: the ground station's
+    /// "online" list.
+    pub fn alive(&self, uav: &NodeId) -> String {
+        format!("{ROOT}/{}/alive/{uav}", self.fleet)
+    }
+
+    pub fn all_alive(&self) -> String {
+        format!("{ROOT}/{}/alive/*", self.fleet)
+    }
+
+    /// The UAV a liveliness token names.
+    pub fn parse_alive(key: &str) -> Result<NodeId, KeyError> {
+        match key.split('/').collect::<Vec<_>>().as_slice() {
+            [root, _fleet, "alive", uav] if *root == ROOT => {
+                NodeId::new(*uav).map_err(|source| KeyError::Id {
+                    key: key.into(),
+                    source,
+                })
+            }
+            _ => Err(KeyError::Shape { key: key.into() }),
+        }
     }
 
     pub fn landmark_changes(&self) -> String {
@@ -169,7 +200,7 @@ mod tests {
 
     proptest! {
         #[test]
-        fn built_keys_parse_back(fleet in "[A-Za-z0-9_-]{1,20}", uav in "[A-Za-z0-9_-]{1,20}", t in 0usize..5) {
+        fn built_keys_parse_back(fleet in "[A-Za-z0-9_-]{1,20}", uav in "[A-Za-z0-9_-]{1,20}", t in 0usize..7) {
             let keys = Keys::new(NodeId::new(fleet.clone()).expect("valid"));
             let topic = Topic::ALL[t];
             let key = keys.uav(&NodeId::new(uav.clone()).expect("valid"), topic);
@@ -182,6 +213,14 @@ mod tests {
         #[test]
         fn parsing_arbitrary_text_never_panics(s in ".{0,80}") {
             let _ = Keys::parse_uav(&s);
+            let _ = Keys::parse_alive(&s);
+        }
+
+        #[test]
+        fn alive_keys_parse_back(uav in "[A-Za-z0-9_-]{1,20}") {
+            let keys = Keys::new(NodeId::new("fleet").expect("valid"));
+            let id = NodeId::new(uav.clone()).expect("valid");
+            prop_assert_eq!(Keys::parse_alive(&keys.alive(&id)).expect("round trip"), id);
         }
     }
 }

@@ -119,6 +119,18 @@ pub enum EdgeState {
     NoFix,
 }
 
+/// How well the daemon itself is doing, apart from whether it has a fix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Health {
+    #[default]
+    Ok,
+    /// Working, but falling behind (dropping frames) or failing some frames.
+    Degraded,
+    /// The frame source or the detector has stopped.
+    Failed,
+}
+
 /// Periodic health of an edge daemon.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StatusHeartbeat {
@@ -129,6 +141,16 @@ pub struct StatusHeartbeat {
     /// Frames per second over the last heartbeat period.
     pub frame_rate_hz: f64,
     pub landmarks_loaded: u32,
+    pub health: Health,
+    /// Frames the bounded queue dropped (oldest first) because the pipeline fell behind, since start.
+    pub frames_dropped: u64,
+    /// Frames whose decoding or detection failed, since start.
+    pub frames_failed: u64,
+    /// Capture-to-publish latency over the last heartbeat period, milliseconds.
+    pub latency_p50_ms: f64,
+    pub latency_p99_ms: f64,
+    /// The detector: a model file name, or "oracle".
+    pub detector: String,
     /// The ENU datum of this UAV's poses.
     pub datum_lat_deg: f64,
     pub datum_lon_deg: f64,
@@ -273,6 +295,36 @@ pub struct Detection {
     pub score: f64,
 }
 
+/// The detector's boxes for one frame, before tracking.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectionReport {
+    pub uav: NodeId,
+    pub time_s: f64,
+    pub seq: u64,
+    pub detections: Vec<Detection>,
+}
+
+impl Message for DetectionReport {
+    const KIND: &'static str = "detection_report";
+}
+
+/// A JPEG of the camera view, sent at a low rate for the operator.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Preview {
+    pub uav: NodeId,
+    pub time_s: f64,
+    pub seq: u64,
+    /// The frame's size before any downscaling: track boxes are in these pixels.
+    pub frame_width: u32,
+    pub frame_height: u32,
+    #[serde(with = "base64_bytes")]
+    pub jpeg: Vec<u8>,
+}
+
+impl Message for Preview {
+    const KIND: &'static str = "preview";
+}
+
 /// Everything the pipeline reads of one camera frame: the detector's boxes and the IMU attitude
 /// at capture time. A wire type so flights can be recorded and replayed without sockets.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -310,4 +362,23 @@ impl Message for LandmarkSyncRequest {
 }
 impl Message for LandmarkSyncReply {
     const KIND: &'static str = "landmark_sync_reply";
+}
+
+/// Binary payloads inside the JSON envelope as base64 text, a third over raw
+/// rather than the four times of a number array.
+mod base64_bytes {
+    use base64::Engine;
+    use base64::engine::general_purpose::STANDARD;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(bytes: &[u8], s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&STANDARD.encode(bytes))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<u8>, D::Error> {
+        let text = <std::borrow::Cow<'de, str>>::deserialize(d)?;
+        STANDARD
+            .decode(text.as_bytes())
+            .map_err(|e| serde::de::Error::custom(format!("jpeg is not base64: {e}")))
+    }
 }

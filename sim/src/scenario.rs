@@ -159,24 +159,39 @@ impl Scenario {
 
     /// Truth and what the pipeline sees (detections, IMU with heading noise) for every frame, in order; deterministic in `seed`.
     pub fn frames(&self) -> impl Iterator<Item = (FrameTruth, DetectionFrame)> + '_ {
-        let mut oracle = OracleDetector::new(self.oracle, self.seed);
-        let mut imu_rng = ChaCha8Rng::seed_from_u64(self.seed ^ 0x1_0000);
-        let imu = self.imu;
+        Self::frames_of(self)
+    }
+
+    /// `frames` owning a shared scenario, for a frame source on its own thread.
+    pub fn frames_shared(
+        self: &std::sync::Arc<Self>,
+    ) -> impl Iterator<Item = (FrameTruth, DetectionFrame)> + Send + 'static {
+        Self::frames_of(self.clone())
+    }
+
+    fn frames_of<S: std::ops::Deref<Target = Scenario>>(
+        scenario: S,
+    ) -> impl Iterator<Item = (FrameTruth, DetectionFrame)> {
+        let this: &Scenario = &scenario;
+        let mut oracle = OracleDetector::new(this.oracle, this.seed);
+        let mut imu_rng = ChaCha8Rng::seed_from_u64(this.seed ^ 0x1_0000);
+        let imu = this.imu;
         let (w, h) = (
-            f64::from(self.camera.intrinsics.width),
-            f64::from(self.camera.intrinsics.height),
+            f64::from(this.camera.intrinsics.width),
+            f64::from(this.camera.intrinsics.height),
         );
-        let outlines = outlines(&self.world);
+        let outlines = outlines(&this.world);
         // First-order Gauss-Markov errors (yaw, roll, pitch) in units of their sigma.
         let keep = if imu.correlation_s > 0.0 {
-            (-1.0 / (self.fps * imu.correlation_s)).exp()
+            (-1.0 / (this.fps * imu.correlation_s)).exp()
         } else {
             0.0
         };
         let drive = (1.0 - keep * keep).sqrt();
         let mut state: Option<[f64; 3]> = None;
-        (0..self.frame_count()).map(move |seq| {
-            let truth = self.truth_with(&outlines, seq);
+        let count = this.frame_count();
+        (0..count).map(move |seq| {
+            let truth = scenario.truth_with(&outlines, seq);
             let detections = oracle.detect(&truth, w, h);
             let with_roll_pitch = imu.roll_pitch_sigma > 0.0;
             let mut draw = || imu_rng.sample::<f64, _>(StandardNormal);

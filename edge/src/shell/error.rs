@@ -10,6 +10,8 @@ pub enum ShellError {
     Encode(#[from] towernav_protocol::EncodeError),
     #[error("landmarks: {0}")]
     Landmarks(String),
+    #[error("edge daemon: {0}")]
+    Daemon(String),
     #[error(transparent)]
     Detector(#[from] super::onnx::OnnxError),
 }

@@ -11,7 +11,7 @@ const SEED: RGBColor = RGBColor(214, 39, 40);
 const OURS: RGBColor = RGBColor(31, 119, 180);
 const FILTERED: RGBColor = RGBColor(44, 160, 44);
 
-fn register_font() -> anyhow::Result<()> {
+pub(crate) fn register_font() -> anyhow::Result<()> {
     plotters::style::register_font(
         "sans-serif",
         FontStyle::Normal,

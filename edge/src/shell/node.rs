@@ -1,14 +1,23 @@
-//! An edge's presence on Zenoh: publishes poses, tracks and status; receives corrections.
+//! An edge's presence on Zenoh: publishes poses, tracks, detections, previews
+//! and status; holds a liveliness token while it runs; receives corrections.
+//!
+//! Poses go out through zenoh-ext's advanced publisher: it keeps the last
+//! samples in a cache and sends sequence heartbeats, so a ground station that
+//! joins late or misses samples can detect the gap and fetch them.
 
+use std::time::Duration;
 use towernav_protocol::session::{Endpoints, session_config};
+
 use towernav_protocol::{
-    CorrectionAck, IdCorrection, Keys, Message, NodeId, PoseEstimate, StatusHeartbeat, Topic,
-    TrackReport, decode, encode,
+    CorrectionAck, DetectionReport, IdCorrection, Keys, Message, NodeId, PoseEstimate, Preview,
+    StatusHeartbeat, Topic, TrackReport, decode, encode,
 };
 use zenoh::Session;
 use zenoh::handlers::FifoChannelHandler;
+use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::sample::Sample;
+use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
 
 use super::ShellError;
 
@@ -23,11 +32,17 @@ pub struct EdgeNode {
     session: Session,
     uav: NodeId,
     keys: Keys,
-    pose: Publisher<'static>,
+    pose: AdvancedPublisher<'static>,
     tracks: Publisher<'static>,
     status: Publisher<'static>,
+    detections: Publisher<'static>,
+    preview: Publisher<'static>,
     corrections: Subscriber<FifoChannelHandler<Sample>>,
+    _alive: LivelinessToken,
 }
+
+/// Poses kept for late joiners: ten seconds at 30 Hz.
+const POSE_CACHE: usize = 300;
 
 impl EdgeNode {
     pub async fn new(session: Session, fleet: NodeId, uav: NodeId) -> Result<Self, ShellError> {
@@ -48,10 +63,24 @@ impl EdgeNode {
         let pose = session
             .declare_publisher(pose_key.clone())
             .congestion_control(zenoh::qos::CongestionControl::Block)
+            .advanced()
+            .cache(CacheConfig::default().max_samples(POSE_CACHE))
+            .sample_miss_detection(
+                MissDetectionConfig::default().heartbeat(Duration::from_millis(500)),
+            )
+            .publisher_detection()
             .await
             .map_err(|e| ShellError::zenoh(format!("declaring publisher {pose_key}"), e))?;
         let tracks = publisher(Topic::Tracks).await?;
         let status = publisher(Topic::Status).await?;
+        let detections = publisher(Topic::Detections).await?;
+        let preview = publisher(Topic::Preview).await?;
+        let alive_key = keys.alive(&uav);
+        let alive = session
+            .liveliness()
+            .declare_token(alive_key.clone())
+            .await
+            .map_err(|e| ShellError::zenoh(format!("declaring liveliness {alive_key}"), e))?;
         let correction_key = keys.uav(&uav, Topic::Correction);
         let corrections = session
             .declare_subscriber(correction_key.clone())
@@ -64,7 +93,10 @@ impl EdgeNode {
             pose,
             tracks,
             status,
+            detections,
+            preview,
             corrections,
+            _alive: alive,
         })
     }
 
@@ -88,7 +120,19 @@ impl EdgeNode {
     }
 
     pub async fn publish_pose(&self, pose: &PoseEstimate) -> Result<(), ShellError> {
-        Self::put(&self.pose, pose).await
+        let bytes = encode(pose)?;
+        self.pose
+            .put(bytes)
+            .await
+            .map_err(|e| ShellError::zenoh("publishing a pose", e))
+    }
+
+    pub async fn publish_detections(&self, report: &DetectionReport) -> Result<(), ShellError> {
+        Self::put(&self.detections, report).await
+    }
+
+    pub async fn publish_preview(&self, preview: &Preview) -> Result<(), ShellError> {
+        Self::put(&self.preview, preview).await
     }
 
     pub async fn publish_tracks(&self, tracks: &TrackReport) -> Result<(), ShellError> {
@@ -117,11 +161,14 @@ impl EdgeNode {
         out
     }
 
+    /// Acknowledgements are sent reliably and never dropped under congestion.
     pub async fn acknowledge(&self, ack: &CorrectionAck) -> Result<(), ShellError> {
         let key = self.keys.uav(&self.uav, Topic::CorrectionAck);
         let bytes = encode(ack)?;
         self.session
             .put(key.clone(), bytes)
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .reliability(zenoh::qos::Reliability::Reliable)
             .await
             .map_err(|e| ShellError::zenoh(format!("publishing on {key}"), e))
     }

@@ -1,0 +1,186 @@
+//! What the autopilot is told: a pose estimate as MAVLink GPS_INPUT (a GNSS
+//! stand-in, for ArduPilot's and PX4's GPS drivers) and ODOMETRY (for their
+//! external-vision fusion). Pure: the shell sends them.
+//!
+//! Accuracy fields come from the estimate's covariance; the fix type from the
+//! edge's state, so an autopilot stops trusting a coasting or lost estimate.
+
+use mavlink::dialects::common::{
+    GPS_INPUT_DATA, GpsFixType, GpsInputIgnoreFlags, MavFrame, ODOMETRY_DATA,
+};
+use nalgebra::UnitQuaternion;
+use towernav_geometry::Attitude;
+use towernav_protocol::{EdgeState, PoseEstimate};
+
+/// Seconds between the GPS epoch (1980-01-06) and the Unix epoch, and the
+/// GPS-UTC leap seconds (18 since 2017).
+const GPS_EPOCH_UNIX_S: u64 = 315_964_800;
+const GPS_LEAP_S: u64 = 18;
+const WEEK_S: u64 = 7 * 24 * 3600;
+
+/// Horizontal and vertical 1-sigma accuracy, metres, from the covariance.
+pub fn accuracy_m(pose: &PoseEstimate) -> (f64, f64) {
+    let c = &pose.covariance;
+    ((c[0][0] + c[1][1]).max(0.0).sqrt(), c[2][2].max(0.0).sqrt())
+}
+
+/// GPS fix type for the edge's state: a 3-D fix only while towers give fixes.
+pub fn fix_type(state: EdgeState) -> GpsFixType {
+    match state {
+        EdgeState::Localized => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+        EdgeState::NoFix => GpsFixType::GPS_FIX_TYPE_2D_FIX,
+        EdgeState::Initializing => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+    }
+}
+
+/// GPS_INPUT for `pose`, stamped with `unix_time_us` (the autopilot wants GPS
+/// week time; velocity is not estimated and flagged as ignored).
+pub fn gps_input(pose: &PoseEstimate, state: EdgeState, unix_time_us: u64) -> GPS_INPUT_DATA {
+    let (h, v) = accuracy_m(pose);
+    let gps_s = (unix_time_us / 1_000_000).saturating_sub(GPS_EPOCH_UNIX_S) + GPS_LEAP_S;
+    let fix = fix_type(state);
+    let fixed = matches!(fix, GpsFixType::GPS_FIX_TYPE_3D_FIX);
+    GPS_INPUT_DATA {
+        time_usec: unix_time_us,
+        time_week_ms: ((gps_s % WEEK_S) * 1000 + (unix_time_us / 1000) % 1000) as u32,
+        time_week: (gps_s / WEEK_S) as u16,
+        lat: (pose.lat_deg * 1e7).round() as i32,
+        lon: (pose.lon_deg * 1e7).round() as i32,
+        alt: pose.alt_m as f32,
+        // With no satellites, DOP is the accuracy over a nominal 1 m range error.
+        hdop: h as f32,
+        vdop: v as f32,
+        horiz_accuracy: h as f32,
+        vert_accuracy: v as f32,
+        ignore_flags: GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_HORIZ
+            | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_VERT
+            | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_SPEED_ACCURACY,
+        gps_id: 0,
+        fix_type: fix,
+        // Autopilots' pre-arm checks count satellites; report a healthy count only with a fix.
+        satellites_visible: if fixed { 12 } else { 0 },
+        ..GPS_INPUT_DATA::DEFAULT
+    }
+}
+
+/// ODOMETRY in the local NED frame about the mission datum (x north, y east,
+/// z down), body FRD, with the pose covariance (row-major upper triangle of
+/// x, y, z, roll, pitch, yaw) and unknown velocity (NaN).
+pub fn odometry(pose: &PoseEstimate, attitude: &Attitude, unix_time_us: u64) -> ODOMETRY_DATA {
+    let c = &pose.covariance;
+    // ENU (e, n, u, yaw) -> NED (n, e, d, yaw): swap e/n, negate u, yaw sign flips.
+    let ned = [1usize, 0, 2];
+    let sign = [1.0, 1.0, -1.0];
+    let mut cov6 = [[0.0f64; 6]; 6];
+    for i in 0..3 {
+        for j in 0..3 {
+            cov6[i][j] = sign[i] * sign[j] * c[ned[i]][ned[j]];
+        }
+        cov6[i][5] = -sign[i] * c[ned[i]][3];
+        cov6[5][i] = cov6[i][5];
+    }
+    cov6[5][5] = c[3][3];
+    // Roll and pitch come from the autopilot's own AHRS: a nominal 1 degree.
+    cov6[3][3] = 1f64.to_radians().powi(2);
+    cov6[4][4] = cov6[3][3];
+    let mut pose_covariance = [0f32; 21];
+    let mut k = 0;
+    for (i, row) in cov6.iter().enumerate() {
+        for value in &row[i..] {
+            pose_covariance[k] = *value as f32;
+            k += 1;
+        }
+    }
+    let ned_attitude = UnitQuaternion::from_euler_angles(
+        attitude.roll,
+        attitude.pitch,
+        Attitude {
+            yaw: pose.yaw_rad,
+            ..*attitude
+        }
+        .yaw_from_north(),
+    );
+    let q = ned_attitude.quaternion();
+    let mut velocity_covariance = [0f32; 21];
+    velocity_covariance[0] = f32::NAN;
+    ODOMETRY_DATA {
+        time_usec: unix_time_us,
+        x: pose.north_m as f32,
+        y: pose.east_m as f32,
+        z: -pose.up_m as f32,
+        q: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+        vx: f32::NAN,
+        vy: f32::NAN,
+        vz: f32::NAN,
+        rollspeed: f32::NAN,
+        pitchspeed: f32::NAN,
+        yawspeed: f32::NAN,
+        pose_covariance,
+        velocity_covariance,
+        frame_id: MavFrame::MAV_FRAME_LOCAL_NED,
+        child_frame_id: MavFrame::MAV_FRAME_BODY_FRD,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use towernav_protocol::{NodeId, PoseMethod};
+
+    fn pose() -> PoseEstimate {
+        let mut covariance = [[0.0; 4]; 4];
+        covariance[0][0] = 4.0; // east 2 m
+        covariance[1][1] = 5.0; // north
+        covariance[2][2] = 9.0; // up 3 m
+        covariance[3][3] = 0.01;
+        covariance[0][1] = 1.0;
+        covariance[1][0] = 1.0;
+        PoseEstimate {
+            uav: NodeId::new("u1").expect("valid"),
+            time_s: 1.0,
+            seq: 30,
+            east_m: 10.0,
+            north_m: 20.0,
+            up_m: 50.0,
+            lat_deg: 30.5205123,
+            lon_deg: 114.3601234,
+            alt_m: 75.5,
+            yaw_rad: std::f64::consts::FRAC_PI_2,
+            covariance,
+            method: PoseMethod::RaysEkf,
+            towers_used: vec!["A1".into()],
+        }
+    }
+
+    #[test]
+    fn gps_input_carries_position_accuracy_and_fix_from_state() {
+        // 2026-11-22 00:00:00 UTC.
+        let unix_us = 1_795_305_600_000_000;
+        let g = gps_input(&pose(), EdgeState::Localized, unix_us);
+        assert_eq!((g.lat, g.lon), (305_205_123, 1_143_601_234));
+        assert!((g.horiz_accuracy - 3.0).abs() < 1e-6, "sqrt(4 + 5)");
+        assert!((g.vert_accuracy - 3.0).abs() < 1e-6);
+        assert_eq!(g.fix_type, GpsFixType::GPS_FIX_TYPE_3D_FIX);
+        assert!(g.satellites_visible >= 6);
+        // GPS week of 2026-11-22 (a Sunday, so the week just began): 2446.
+        assert_eq!(g.time_week, 2446);
+        assert_eq!(g.time_week_ms, 18_000, "18 leap seconds into the week");
+        let lost = gps_input(&pose(), EdgeState::Initializing, unix_us);
+        assert_eq!(lost.fix_type, GpsFixType::GPS_FIX_TYPE_NO_FIX);
+        assert_eq!(lost.satellites_visible, 0);
+    }
+
+    #[test]
+    fn odometry_is_ned_with_the_covariance_rotated() {
+        let o = odometry(&pose(), &Attitude::level(0.0), 0);
+        assert_eq!((o.x, o.y, o.z), (20.0, 10.0, -50.0));
+        assert_eq!(o.pose_covariance[0], 5.0, "x is north");
+        assert_eq!(o.pose_covariance[1], 1.0, "x-y");
+        assert_eq!(o.pose_covariance[6], 4.0, "y is east");
+        assert_eq!(o.pose_covariance[11], 9.0, "z");
+        assert!((o.pose_covariance[20] - 0.01).abs() < 1e-9, "yaw");
+        // ENU yaw pi/2 (facing north) is NED yaw 0: identity quaternion.
+        assert!((o.q[0] - 1.0).abs() < 1e-6, "{:?}", o.q);
+        assert!(o.vx.is_nan(), "velocity is not estimated");
+    }
+}
