@@ -296,9 +296,13 @@ fn main() -> anyhow::Result<()> {
             seed: *seed,
             recall_score: detector.min_score,
         };
+        // Average precision needs the whole ranking: keep candidates down to 0.001,
+        // as Ultralytics' validation does; P and R are read at --min-score.
+        let mut detector_options = detector.options();
+        detector_options.post.min_score = 0.001;
         return towernav_edge::shell::detector_eval_cmd::write_all(
             &detector.model,
-            &detector.options(),
+            &detector_options,
             &options,
             out,
         );

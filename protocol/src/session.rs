@@ -20,7 +20,18 @@ pub struct Endpoints {
 
 /// A peer-mode config with multicast scouting off and only the given endpoints.
 /// (Gossip stays on: it travels over links we opened, and zenoh needs it to de-duplicate.)
+/// Samples carry the sender's timestamp, so receivers can tell their age.
 pub fn session_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionConfigError> {
+    config_for("peer", endpoints)
+}
+
+/// A router for a fleet: edges and ground stations connect to its `listen`
+/// endpoints; multicast scouting off, as everywhere.
+pub fn router_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionConfigError> {
+    config_for("router", endpoints)
+}
+
+fn config_for(mode: &str, endpoints: &Endpoints) -> Result<zenoh::Config, SessionConfigError> {
     for endpoint in endpoints.listen.iter().chain(&endpoints.connect) {
         endpoint
             .parse::<zenoh::config::EndPoint>()
@@ -31,8 +42,9 @@ pub fn session_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionCon
     }
     let mut config = zenoh::Config::default();
     let json = |v: &[String]| serde_json::to_string(v).unwrap_or_else(|_| "[]".into());
-    let settings: [(&'static str, String); 4] = [
-        ("mode", "\"peer\"".into()),
+    let settings: [(&'static str, String); 5] = [
+        ("mode", format!("{mode:?}")),
+        ("timestamping/enabled", "true".into()),
         ("scouting/multicast/enabled", "false".into()),
         ("listen/endpoints", json(&endpoints.listen)),
         ("connect/endpoints", json(&endpoints.connect)),
@@ -63,6 +75,12 @@ mod tests {
         assert!(text.contains("127.0.0.1:17447"), "{text}");
         let multicast = config.get_json("scouting/multicast/enabled").expect("key");
         assert_eq!(multicast, "false");
+        let router = router_config(&Endpoints::default()).expect("config");
+        assert_eq!(router.get_json("mode").expect("key"), "\"router\"");
+        assert_eq!(
+            router.get_json("scouting/multicast/enabled").expect("key"),
+            "false"
+        );
     }
 
     #[test]

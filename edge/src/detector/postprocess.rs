@@ -16,6 +16,8 @@ pub struct PostprocessParams {
     pub nms_iou: f64,
     /// Boxes whose clipped height is below this many frame pixels are dropped.
     pub min_height_px: f64,
+    /// At most this many boxes, best first (Ultralytics' `max_det`).
+    pub max_detections: usize,
 }
 
 impl Default for PostprocessParams {
@@ -24,6 +26,7 @@ impl Default for PostprocessParams {
             min_score: 0.25,
             nms_iou: 0.5,
             min_height_px: 4.0,
+            max_detections: 300,
         }
     }
 }
@@ -49,6 +52,7 @@ pub fn postprocess(
                 score: f64::from(d.score),
             })
         })
+        .take(params.max_detections)
         .collect())
 }
 
