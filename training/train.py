@@ -38,6 +38,11 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--init",
+        type=Path,
+        help="start from this project's own earlier checkpoint (a later stage of the same from-scratch training)",
+    )
     return p.parse_args()
 
 
@@ -73,7 +78,9 @@ def main() -> int:
     else:
         if run_dir.exists():
             shutil.rmtree(run_dir)
-        model = YOLO(args.model)  # a .yaml: random init, no download
+        # A .yaml builds a random init (no download); --init continues from
+        # an earlier stage of this project's own from-scratch training.
+        model = YOLO(str(args.init) if args.init else args.model)
         model.train(
             data=str(data_yaml),
             epochs=args.epochs,
@@ -83,7 +90,7 @@ def main() -> int:
             workers=args.workers,
             device="cpu",
             cache="ram",
-            pretrained=False,
+            pretrained=bool(args.init),
             amp=False,
             plots=False,
             project=str(out),
@@ -142,6 +149,7 @@ def main() -> int:
         }
     summary = {
         "model": args.model,
+        "init": str(args.init) if args.init else None,
         "imgsz": args.imgsz,
         "export_input": [args.export_h, args.export_w],
         "classes": model.names,

@@ -44,6 +44,10 @@ enum Task {
         worlds: u32,
         #[arg(long, default_value_t = 30)]
         frames_per_world: u32,
+        /// Start a new stage from the finished run's own best weights (the
+        /// earlier run is kept as `run-stage<N>`); no weights are downloaded.
+        #[arg(long)]
+        continue_run: bool,
     },
     /// Install ONNX Runtime's shared library into .ort/ (from the onnxruntime wheel on PyPI).
     SetupOrt,
@@ -68,6 +72,7 @@ fn main() -> anyhow::Result<()> {
             hours,
             worlds,
             frames_per_world,
+            continue_run,
         } => train::train(
             &root,
             &train::TrainOptions {
@@ -76,6 +81,7 @@ fn main() -> anyhow::Result<()> {
                 hours,
                 worlds,
                 frames_per_world,
+                continue_run,
             },
         ),
     }

@@ -25,6 +25,7 @@ pub struct TrainOptions {
     pub hours: f64,
     pub worlds: u32,
     pub frames_per_world: u32,
+    pub continue_run: bool,
 }
 
 pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
@@ -59,14 +60,27 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
                 ]),
         )?;
     }
-    let mut cmd = Command::new(&python);
-    cmd.arg(root.join("training").join("train.py"))
+    let init = if options.continue_run {
+        Some(archive_finished_run(&work, &run_dir)?)
+    } else {
+        None
+    };
+    // Lowest CPU priority, and OpenMP threads that sleep instead of spinning:
+    // the run soaks up idle cores without slowing a build beside it.
+    let mut cmd = Command::new("nice");
+    cmd.args(["-n", "19"])
+        .arg(&python)
+        .env("OMP_WAIT_POLICY", "PASSIVE")
+        .arg(root.join("training").join("train.py"))
         .arg("--data")
         .arg(&dataset)
         .arg("--out")
         .arg(&run_dir)
         .args(["--hours", &options.hours.to_string()])
         .current_dir(root);
+    if let Some(init) = &init {
+        cmd.arg("--init").arg(init);
+    }
     if options.foreground {
         return run(&mut cmd);
     }
@@ -95,6 +109,25 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         log_path.display()
     );
     Ok(())
+}
+
+/// Move a finished run to `run-stage<N>` and return its best weights, the
+/// starting point of the next stage.
+fn archive_finished_run(work: &Path, run_dir: &Path) -> anyhow::Result<PathBuf> {
+    let best = run_dir.join("train").join("weights").join("best.pt");
+    if !run_dir.join("summary.json").exists() || !best.exists() {
+        bail!(
+            "--continue-run needs a finished run in {} (with summary.json and train/weights/best.pt)",
+            run_dir.display()
+        );
+    }
+    let stage = (1..)
+        .map(|n| work.join(format!("run-stage{n}")))
+        .find(|p| !p.exists())
+        .context("no free stage folder name")?;
+    std::fs::rename(run_dir, &stage)
+        .with_context(|| format!("moving {} to {}", run_dir.display(), stage.display()))?;
+    Ok(stage.join("train").join("weights").join("best.pt"))
 }
 
 /// The pid in `pid_file` if that process is still alive.
