@@ -107,6 +107,19 @@ impl Identity {
         self.pinned.contains_key(&track_id)
     }
 
+    /// How sure the binding of a bound track is, 0..=1: 1 when pinned or in
+    /// agreement with the trusted pose, falling with each frame in a row it
+    /// disagrees, to 0 just before it is released. `None` when unbound.
+    pub fn confidence(&self, track_id: u64) -> Option<f64> {
+        self.bindings.get(&track_id)?;
+        if self.is_pinned(track_id) {
+            return Some(1.0);
+        }
+        let strikes = self.strikes.get(&track_id).copied().unwrap_or(0);
+        let limit = self.params.release_after.max(1);
+        Some(1.0 - f64::from(strikes.min(limit)) / f64::from(limit))
+    }
+
     /// Normalised distance between a track's box and a tower's predicted one
     /// (bearing and log size; size is skipped for a box cut by the image edge).
     fn distance(

@@ -52,6 +52,8 @@ pub struct BoundTrack {
     /// Index into the landmark map.
     pub tower: Option<usize>,
     pub pinned: bool,
+    /// How sure the binding is (see [`Identity::confidence`]).
+    pub confidence: Option<f64>,
 }
 
 /// A bound box as the localizer gets it; `process_tampered` may alter these.
@@ -265,6 +267,7 @@ impl Pipeline {
             .zip(bindings)
             .map(|(t, tower)| BoundTrack {
                 pinned: self.identity.is_pinned(t.track_id),
+                confidence: tower.and_then(|_| self.identity.confidence(t.track_id)),
                 track_id: t.track_id,
                 bbox: t.bbox,
                 tower_type: t.tower_type,

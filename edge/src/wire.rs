@@ -68,6 +68,7 @@ pub fn track_report(uav: &NodeId, out: &FrameOutput, map: &LandmarkMap) -> Track
                 tower_type: t.tower_type,
                 tower_id: t.tower.map(|i| map.towers[i].id.clone()),
                 pinned: t.pinned,
+                confidence: t.confidence,
             })
             .collect(),
     }

@@ -1,30 +1,27 @@
-//! The operator's window: fleet list on the left, the map in the middle.
+//! The operator's window: the fleet on the left; the map with the selected
+//! UAV's camera, the landmark editor, or the edit history in the middle.
+//!
+//! The app owns the landmark database: its edits are transactions on the
+//! same file the landmark service tails, so they go live to the edges.
 
-use std::sync::mpsc::Receiver;
+use std::path::PathBuf;
 
-use egui::{Color32, RichText};
-use egui_plot::{Legend, Line, MarkerShape, Plot, PlotPoint, Points, Text};
+use egui::Color32;
 use towernav_geometry::{Datum, Geodetic};
-use towernav_protocol::{LandmarkRecord, TowerType};
+use towernav_landmark_db::{
+    Author, DbError, Format, ImportOptions, LandmarkDb, OsmMapping, export_csv, export_geojson,
+    export_osm_xml, import_file,
+};
+use towernav_protocol::{LandmarkChange, LandmarkRecord, NodeId};
 
-use crate::fleet::{Fleet, NetEvent};
-
-/// A pose older than this is drawn as stale.
-const STALE_AFTER_S: f64 = 2.0;
-
-struct MapTower {
-    id: String,
-    tower_type: TowerType,
-    en: [f64; 2],
-}
-
-pub struct GsApp {
-    fleet: Fleet,
-    towers: Vec<MapTower>,
-    events: Receiver<NetEvent>,
-    /// What the operator is told about where the UAVs are expected.
-    listening_on: String,
-}
+use crate::camera_view::{self, CameraAction, CameraState};
+use crate::corrections::Corrections;
+use crate::fleet::Fleet;
+use crate::fleet_panel;
+use crate::landmark_editor::{self, EditorAction, EditorState, FileFormat};
+use crate::map_view::{self, MapState, MapTower};
+use crate::net::{NetCommand, NetLink};
+use crate::tiles::TileLayer;
 
 /// The map frame's origin: the towers' centroid, on the lowest foot.
 pub fn map_datum(landmarks: &[LandmarkRecord]) -> Option<Datum> {
@@ -42,14 +39,125 @@ pub fn map_datum(landmarks: &[LandmarkRecord]) -> Option<Datum> {
     }))
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Tab {
+    Map,
+    Landmarks,
+    History,
+}
+
+/// How the app was started.
+pub struct GsOptions {
+    /// What the operator is told about where the UAVs are expected.
+    pub listening_on: String,
+    /// Name stamped on database changes and corrections.
+    pub operator: String,
+    /// First correction request id (seed from the clock).
+    pub first_request_id: u64,
+    /// A local slippy-map tile folder for the map background.
+    pub tiles: Option<PathBuf>,
+    /// Set when the app shows a recording instead of live traffic.
+    pub replaying: Option<PathBuf>,
+}
+
+impl Default for GsOptions {
+    fn default() -> Self {
+        Self {
+            listening_on: "tcp/127.0.0.1:7447".into(),
+            operator: "ground-station".into(),
+            first_request_id: 1,
+            tiles: None,
+            replaying: None,
+        }
+    }
+}
+
+pub struct GsApp {
+    fleet: Fleet,
+    db: LandmarkDb,
+    records: Vec<LandmarkRecord>,
+    history: Vec<LandmarkChange>,
+    towers: Vec<MapTower>,
+    /// Whether the datum came from towers (an empty database gets a placeholder).
+    datum_from_towers: bool,
+    link: NetLink,
+    options: GsOptions,
+    tiles: Option<TileLayer>,
+    pub selected: Option<NodeId>,
+    pub tab: Tab,
+    map: MapState,
+    camera: CameraState,
+    editor: EditorState,
+    recording: bool,
+    record_path: String,
+}
+
 impl GsApp {
-    pub fn new(
-        landmarks: &[LandmarkRecord],
-        datum: Datum,
-        events: Receiver<NetEvent>,
-        listening_on: String,
-    ) -> Self {
-        let towers = landmarks
+    pub fn new(db: LandmarkDb, link: NetLink, options: GsOptions) -> Result<Self, DbError> {
+        let records = db.list()?;
+        let (datum, from_towers) = match map_datum(&records) {
+            Some(d) => (d, true),
+            None => (
+                Datum::new(Geodetic {
+                    lat_deg: 0.0,
+                    lon_deg: 0.0,
+                    height_m: 0.0,
+                }),
+                false,
+            ),
+        };
+        let mut fleet = Fleet::new(datum);
+        fleet.corrections = Corrections::starting_at(options.first_request_id);
+        let tiles = options.tiles.as_deref().and_then(|dir| {
+            TileLayer::open(dir, datum)
+                .map_err(|e| fleet.notices.push(e.to_string()))
+                .ok()
+        });
+        let mut app = Self {
+            fleet,
+            db,
+            records: Vec::new(),
+            history: Vec::new(),
+            towers: Vec::new(),
+            datum_from_towers: from_towers,
+            link,
+            tiles,
+            selected: None,
+            tab: Tab::Map,
+            map: MapState::default(),
+            camera: CameraState::default(),
+            editor: EditorState::default(),
+            recording: false,
+            record_path: "session.mcap".into(),
+            options,
+        };
+        app.reload_landmarks()?;
+        Ok(app)
+    }
+
+    pub fn fleet(&self) -> &Fleet {
+        &self.fleet
+    }
+
+    pub fn db(&self) -> &LandmarkDb {
+        &self.db
+    }
+
+    fn reload_landmarks(&mut self) -> Result<(), DbError> {
+        self.records = self.db.list()?;
+        self.history = self.db.changes_since(0)?;
+        if !self.datum_from_towers
+            && let Some(datum) = map_datum(&self.records)
+        {
+            // The first towers of an empty database set the map frame.
+            let corrections = std::mem::take(&mut self.fleet.corrections);
+            self.fleet = Fleet::new(datum);
+            self.fleet.corrections = corrections;
+            self.datum_from_towers = true;
+        }
+        let datum = self.fleet.datum;
+        self.towers = self
+            .records
             .iter()
             .map(|l| {
                 let p = datum.to_enu(&Geodetic {
@@ -64,167 +172,250 @@ impl GsApp {
                 }
             })
             .collect();
-        Self {
-            fleet: Fleet::new(datum),
-            towers,
-            events,
-            listening_on,
-        }
-    }
-
-    pub fn fleet(&self) -> &Fleet {
-        &self.fleet
+        Ok(())
     }
 
     /// Draws one frame; `now_s` is the ground station's monotonic clock.
     pub fn show(&mut self, ui: &mut egui::Ui, now_s: f64) {
-        while let Ok(event) = self.events.try_recv() {
+        while let Ok(event) = self.link.events.try_recv() {
             self.fleet.apply(event, now_s);
         }
+        if self.selected.is_none() {
+            self.selected = self.fleet.uavs.keys().next().cloned();
+        }
+        egui::Panel::top("toolbar").show(ui, |ui| self.toolbar(ui));
         egui::Panel::left("fleet")
-            .default_size(260.0)
-            .show(ui, |ui| self.fleet_panel(ui, now_s));
-        egui::CentralPanel::default().show(ui, |ui| self.map(ui, now_s));
-    }
-
-    fn fleet_panel(&self, ui: &mut egui::Ui, now_s: f64) {
-        ui.heading("Fleet");
-        if let Some(e) = &self.fleet.network_error {
-            ui.colored_label(Color32::RED, format!("network stopped: {e}"));
-        }
-        if self.fleet.uavs.is_empty() {
-            ui.label(format!("No UAV yet. Listening via {}", self.listening_on));
-        }
-        for (uav, view) in &self.fleet.uavs {
-            ui.separator();
-            ui.label(RichText::new(uav.as_str()).strong());
-            match self.fleet.pose_age_s(uav, now_s) {
-                Some(age) => {
-                    let text = format!("last pose {age:.1} s ago");
-                    if age > STALE_AFTER_S {
-                        ui.colored_label(Color32::ORANGE, text);
-                    } else {
-                        ui.label(text);
-                    }
-                }
-                None => {
-                    ui.label("no pose yet");
-                }
-            }
-            if let Some(p) = &view.last_pose {
-                ui.label(format!(
-                    "{:.6}, {:.6}  alt {:.1} m",
-                    p.lat_deg, p.lon_deg, p.alt_m
-                ));
-                let sigma = (p.covariance[0][0] + p.covariance[1][1]).max(0.0).sqrt();
-                ui.label(format!("±{sigma:.1} m from {}", p.towers_used.join(" ")));
-            }
-            if let Some(s) = &view.status {
-                ui.label(format!("{:?}, {:.0} frames/s", s.state, s.frame_rate_hz));
-            }
-            if let Some(t) = &view.tracks {
-                ui.label(format!("{} tracks", t.tracks.len()));
-            }
-        }
-        ui.separator();
-        ui.label(format!("Towers: {}", self.towers.len()));
-        if !self.fleet.rejected.is_empty() {
-            ui.colored_label(
-                Color32::RED,
-                format!("{} payloads rejected", self.fleet.rejected.len()),
-            )
-            .on_hover_text(
-                self.fleet
-                    .rejected
-                    .iter()
-                    .rev()
-                    .take(5)
-                    .map(|(k, e)| format!("{k}: {e}"))
-                    .collect::<Vec<_>>()
-                    .join("\n"),
-            );
-        }
-    }
-
-    fn map(&self, ui: &mut egui::Ui, now_s: f64) {
-        Plot::new("map")
-            .data_aspect(1.0)
-            .legend(Legend::default())
-            .x_axis_label("east (m)")
-            .y_axis_label("north (m)")
-            .show(ui, |plot| {
-                for t in TowerType::ALL {
-                    let pts: Vec<[f64; 2]> = self
-                        .towers
-                        .iter()
-                        .filter(|m| m.tower_type == t)
-                        .map(|m| m.en)
-                        .collect();
-                    if !pts.is_empty() {
-                        plot.points(
-                            Points::new(format!("towers {t}"), pts)
-                                .shape(tower_marker(t))
-                                .radius(5.0),
-                        );
-                    }
-                }
-                for m in &self.towers {
-                    plot.text(Text::new(
-                        "tower ids",
-                        PlotPoint::new(m.en[0], m.en[1] + 12.0),
-                        m.id.as_str(),
-                    ));
-                }
-                for (uav, view) in &self.fleet.uavs {
-                    let trail: Vec<[f64; 2]> = view.trail.iter().copied().collect();
-                    if let Some(&last) = trail.last() {
-                        let stale = self
-                            .fleet
-                            .pose_age_s(uav, now_s)
-                            .is_some_and(|a| a > STALE_AFTER_S);
-                        plot.line(Line::new(uav.as_str(), trail));
-                        plot.points(
-                            Points::new(uav.as_str(), vec![last])
-                                .shape(MarkerShape::Diamond)
-                                .radius(7.0)
-                                .color(if stale {
-                                    Color32::GRAY
-                                } else {
-                                    Color32::LIGHT_GREEN
-                                }),
-                        );
-                    }
-                }
+            .default_size(270.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    fleet_panel::show(
+                        ui,
+                        &self.fleet,
+                        &mut self.selected,
+                        &self.options.listening_on,
+                        now_s,
+                    );
+                    ui.separator();
+                    ui.label(format!("Towers: {}", self.towers.len()));
+                });
             });
+        match self.tab {
+            Tab::Map => {
+                egui::Panel::right("camera")
+                    .default_size(420.0)
+                    .show(ui, |ui| self.camera_panel(ui, now_s));
+                egui::CentralPanel::default().show(ui, |ui| {
+                    map_view::show(
+                        ui,
+                        &mut self.map,
+                        &self.fleet,
+                        &self.towers,
+                        self.tiles.as_mut(),
+                        self.selected.as_ref(),
+                        now_s,
+                    );
+                });
+            }
+            Tab::Landmarks => {
+                if let Some(action) = landmark_editor::show(ui, &mut self.editor, &self.records) {
+                    self.apply_editor(action);
+                }
+            }
+            Tab::History => {
+                egui::CentralPanel::default()
+                    .show(ui, |ui| landmark_editor::history(ui, &self.history));
+            }
+        }
     }
-}
 
-fn tower_marker(t: TowerType) -> MarkerShape {
-    match t {
-        TowerType::A => MarkerShape::Up,
-        TowerType::B => MarkerShape::Square,
-        TowerType::C => MarkerShape::Circle,
-        TowerType::D => MarkerShape::Cross,
+    fn toolbar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut self.tab, Tab::Map, "Map");
+            ui.selectable_value(&mut self.tab, Tab::Landmarks, "Landmarks");
+            ui.selectable_value(&mut self.tab, Tab::History, "History");
+            ui.separator();
+            if let Some(path) = &self.options.replaying {
+                ui.colored_label(Color32::LIGHT_BLUE, format!("replaying {}", path.display()));
+            } else if self.recording {
+                ui.colored_label(Color32::RED, "recording");
+                if ui.button("Stop").clicked() {
+                    self.recording = false;
+                    self.command(NetCommand::StopRecording);
+                }
+            } else {
+                let name = ui.label("Record to");
+                ui.add(egui::TextEdit::singleline(&mut self.record_path).desired_width(160.0))
+                    .labelled_by(name.id);
+                if ui
+                    .button("Record")
+                    .on_hover_text("record every topic to MCAP")
+                    .clicked()
+                {
+                    self.recording = true;
+                    let path = PathBuf::from(self.record_path.trim());
+                    self.command(NetCommand::StartRecording(path));
+                }
+            }
+            if let Some(notice) = self.fleet.notices.last() {
+                ui.separator();
+                ui.label(notice);
+            }
+        });
+    }
+
+    fn command(&mut self, command: NetCommand) {
+        if self.link.commands.send(command).is_err() {
+            self.fleet
+                .notices
+                .push("the network thread has stopped; nothing was sent".into());
+        }
+    }
+
+    fn camera_panel(&mut self, ui: &mut egui::Ui, now_s: f64) {
+        let Some(uav) = self.selected.clone() else {
+            ui.label("Select a UAV in the fleet panel to see its camera.");
+            return;
+        };
+        let Some(view) = self.fleet.uavs.get(&uav) else {
+            return;
+        };
+        let action = egui::ScrollArea::vertical()
+            .show(ui, |ui| {
+                camera_view::show(
+                    ui,
+                    &mut self.camera,
+                    &uav,
+                    view,
+                    &self.fleet.corrections,
+                    &self.towers,
+                )
+            })
+            .inner;
+        let operator = self.options.operator.clone();
+        let message = match action {
+            Some(CameraAction::Send {
+                uav,
+                track_id,
+                tower,
+                previous,
+            }) => Some(
+                self.fleet
+                    .corrections
+                    .issue(&uav, track_id, tower, previous, &operator, now_s),
+            ),
+            Some(CameraAction::Undo(request_id)) => {
+                self.fleet.corrections.undo(request_id, &operator, now_s)
+            }
+            None => None,
+        };
+        if let Some(m) = message {
+            self.command(NetCommand::Correct(m));
+        }
+    }
+
+    fn apply_editor(&mut self, action: EditorAction) {
+        let author = Author::now(&self.options.operator);
+        let outcome: Result<String, String> = match action {
+            EditorAction::Upsert(record) => self
+                .db
+                .upsert(&record, &author)
+                .map(|rev| format!("saved {} (revision {rev})", record.id))
+                .map_err(|e| e.to_string()),
+            EditorAction::Delete(id) => match self.db.remove(&id, &author) {
+                Ok(Some(rev)) => {
+                    self.editor.editing = None;
+                    self.editor.form = Default::default();
+                    Ok(format!("deleted {id} (revision {rev})"))
+                }
+                Ok(None) => Err(format!("{id} was already gone")),
+                Err(e) => Err(e.to_string()),
+            },
+            EditorAction::Import(path, format) => {
+                let options = ImportOptions {
+                    osm: OsmMapping::towernav(),
+                    ..ImportOptions::default()
+                };
+                let format = match format {
+                    FileFormat::Csv => Format::Csv,
+                    FileFormat::GeoJson => Format::GeoJson,
+                    FileFormat::Osm => Format::OsmXml,
+                };
+                import_file(&mut self.db, &path, format, &options, &author)
+                    .map(|r| {
+                        let mut text = format!(
+                            "imported {} towers from {} (revision {})",
+                            r.imported,
+                            path.display(),
+                            r.revision
+                        );
+                        for w in r.warnings.iter().take(3) {
+                            text += &format!("; {}: {}", w.id, w.message);
+                        }
+                        text
+                    })
+                    .map_err(|e| e.to_string())
+            }
+            EditorAction::Export(path, format) => self.export(&path, format),
+        };
+        if let Err(e) = self.reload_landmarks() {
+            self.fleet
+                .notices
+                .push(format!("reading the database: {e}"));
+        }
+        self.editor.message = Some(match outcome {
+            Ok(text) => (true, text),
+            Err(text) => (false, text),
+        });
+    }
+
+    fn export(&self, path: &std::path::Path, format: FileFormat) -> Result<String, String> {
+        let bytes = match format {
+            FileFormat::Csv => {
+                let mut out = Vec::new();
+                export_csv(&self.records, &mut out).map_err(|e| e.to_string())?;
+                out
+            }
+            FileFormat::GeoJson => export_geojson(&self.records)
+                .map_err(|e| e.to_string())?
+                .into_bytes(),
+            FileFormat::Osm => export_osm_xml(&self.records).into_bytes(),
+        };
+        std::fs::write(path, bytes).map_err(|e| format!("writing {}: {e}", path.display()))?;
+        Ok(format!(
+            "exported {} towers to {}",
+            self.records.len(),
+            path.display()
+        ))
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use crate::fleet::NetEvent;
-    use crate::test_support::{app, pose};
+    use std::cell::Cell;
+    use std::rc::Rc;
+
     use egui_kittest::Harness;
     use egui_kittest::kittest::Queryable;
-    use towernav_protocol::{EdgeState, Keys, NodeId, StatusHeartbeat, Topic};
+    use towernav_protocol::{
+        CorrectionAck, EdgeState, Health, NodeId, StatusHeartbeat, TowerType, Track, TrackReport,
+    };
 
-    use super::GsApp;
+    use towernav_geometry::PixelBox;
 
-    #[test]
-    fn shows_each_uav_with_the_age_of_its_last_pose() {
-        let (tx, app) = app();
-        tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 30)))
-            .expect("send");
-        tx.send(NetEvent::Status(StatusHeartbeat {
-            uav: NodeId::new("uav1").expect("valid"),
+    use super::{GsApp, Tab};
+    use crate::events::NetEvent;
+    use crate::net::NetCommand;
+    use crate::test_support::{app, pose};
+
+    fn harness(app: GsApp, now: Rc<Cell<f64>>) -> Harness<'static, GsApp> {
+        Harness::builder()
+            .with_size([1600.0, 900.0])
+            .build_ui_state(move |ui, app: &mut GsApp| app.show(ui, now.get()), app)
+    }
+
+    fn status(uav: &str) -> StatusHeartbeat {
+        StatusHeartbeat {
+            uav: NodeId::new(uav).expect("valid"),
             time_s: 1.0,
             state: EdgeState::Localized,
             frames_processed: 30,
@@ -233,44 +424,197 @@ mod tests {
             datum_lat_deg: 30.52,
             datum_lon_deg: 114.36,
             datum_alt_m: 25.0,
-            health: towernav_protocol::Health::Ok,
-            frames_dropped: 0,
+            health: Health::Degraded,
+            frames_dropped: 4,
             frames_failed: 0,
             latency_p50_ms: 3.0,
             latency_p99_ms: 9.0,
             detector: "oracle".into(),
-        }))
-        .expect("send");
-        let now = std::cell::Cell::new(0.0);
-        let mut harness = Harness::new_ui_state(|ui, app: &mut GsApp| app.show(ui, now.get()), app);
-        harness.run();
-        // Once in the fleet list, once in the map's legend.
-        assert_eq!(harness.get_all_by_label("uav1").count(), 2);
-        harness.get_by_label("last pose 0.0 s ago");
-        harness.get_by_label("±3.0 m from A1 B1");
-        harness.get_by_label("Localized, 30 frames/s");
-        harness.get_by_label("Towers: 2");
-        assert_eq!(harness.state().fleet().uavs.len(), 1);
-
-        // Time passes with no new pose: the age grows.
-        now.set(4.0);
-        harness.run();
-        harness.get_by_label("last pose 4.0 s ago");
+        }
     }
 
     #[test]
-    fn an_empty_fleet_says_where_it_listens_and_shows_rejections() {
-        let (tx, app) = app();
-        let key = Keys::new(NodeId::new("demo").expect("valid"))
-            .uav(&NodeId::new("u").expect("valid"), Topic::Pose);
-        tx.send(NetEvent::Rejected {
-            key,
-            error: "schema 2".into(),
+    fn the_fleet_panel_shows_each_uav_and_warns_when_its_poses_stop() {
+        let (tx, _commands, app) = app();
+        tx.send(NetEvent::Alive {
+            uav: NodeId::new("uav1").expect("valid"),
+            alive: true,
         })
         .expect("send");
-        let mut harness = Harness::new_ui_state(|ui, app: &mut GsApp| app.show(ui, 0.0), app);
+        tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 30)))
+            .expect("send");
+        tx.send(NetEvent::Status(status("uav1"))).expect("send");
+        let now = Rc::new(Cell::new(0.0));
+        let mut harness = harness(app, now.clone());
         harness.run();
-        harness.get_by_label("No UAV yet. Listening via tcp/127.0.0.1:7447");
-        harness.get_by_label("1 payloads rejected");
+        harness.get_by_label("online");
+        harness.get_by_label("latency p50 3 ms, p99 9 ms");
+        harness.get_by_label("degraded");
+        harness.get_by_label("4 dropped, 0 failed frames; oracle");
+        harness.get_by_label("fix from A1 B1");
+        assert!(harness.query_by_label_contains("STALE").is_none());
+        assert_eq!(
+            harness.state().selected.as_ref().map(NodeId::as_str),
+            Some("uav1")
+        );
+
+        // Poses stop: after two seconds the panel says so.
+        now.set(4.0);
+        harness.run();
+        harness.get_by_label("STALE: no pose for 4.0 s");
+    }
+
+    #[test]
+    fn adding_a_landmark_in_the_ui_persists_it() {
+        let (_tx, _commands, app) = app();
+        let mut harness = harness(app, Rc::new(Cell::new(0.0)));
+        harness.run();
+        harness.get_by_label("Landmarks").click();
+        harness.run();
+        assert_eq!(harness.state().tab, Tab::Landmarks);
+        for (field, text) in [
+            ("Id", "C7"),
+            ("Latitude (deg)", "30.5231"),
+            ("Longitude (deg)", "114.3612"),
+            ("Ground elevation (m)", "24.5"),
+            ("Height (m)", "nine"),
+        ] {
+            harness
+                .get_by_role_and_label(egui::Role::TextInput, field)
+                .focus();
+            harness.run();
+            harness
+                .get_by_role_and_label(egui::Role::TextInput, field)
+                .type_text(text);
+            harness.run();
+        }
+        // Validation is shown beside the field, and the button stays off.
+        harness.get_by_label("\"nine\" is not a number");
+        harness.get_by_label("Add").click();
+        harness.run();
+        assert!(harness.state().db().get("C7").expect("db").is_none());
+
+        let height = "Height (m)";
+        harness
+            .get_by_role_and_label(egui::Role::TextInput, height)
+            .focus();
+        harness.run();
+        for _ in 0..4 {
+            harness.key_press(egui::Key::Backspace);
+        }
+        harness
+            .get_by_role_and_label(egui::Role::TextInput, height)
+            .type_text("41");
+        harness.run();
+        harness.get_by_label("Add").click();
+        harness.run();
+        let stored = harness
+            .state()
+            .db()
+            .get("C7")
+            .expect("db")
+            .expect("the tower was written");
+        assert_eq!((stored.tower_type, stored.height_m), (TowerType::A, 41.0));
+        harness.get_by_label_contains("saved C7");
+        // The map and the history know it too.
+        harness.get_by_label("Towers: 3");
+        harness.get_by_label("History").click();
+        harness.run();
+        harness.get_by_label("Edit history (3 revisions)");
+        harness.get_by_label_contains("set C7 (A, 30.523100");
+    }
+
+    #[test]
+    fn a_click_on_a_box_then_a_tower_publishes_a_correction_and_shows_its_ack() {
+        let (tx, mut commands, app) = app();
+        let uav = NodeId::new("uav1").expect("valid");
+        tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 5)))
+            .expect("send");
+        tx.send(NetEvent::Tracks(TrackReport {
+            uav: uav.clone(),
+            time_s: 0.2,
+            seq: 5,
+            tracks: vec![Track {
+                track_id: 7,
+                bbox: PixelBox::new(600.0, 200.0, 660.0, 400.0),
+                tower_type: TowerType::B,
+                tower_id: Some("A1".into()),
+                pinned: false,
+                confidence: Some(0.3),
+            }],
+        }))
+        .expect("send");
+        let mut jpeg = Vec::new();
+        image::RgbImage::from_pixel(64, 36, image::Rgb([90, 120, 160]))
+            .write_to(
+                &mut std::io::Cursor::new(&mut jpeg),
+                image::ImageFormat::Jpeg,
+            )
+            .expect("jpeg");
+        let preview = towernav_protocol::Preview {
+            uav: uav.clone(),
+            time_s: 0.2,
+            seq: 5,
+            frame_width: 1280,
+            frame_height: 720,
+            jpeg,
+        };
+        let bytes = towernav_protocol::encode(&preview).expect("encode");
+        let key = towernav_protocol::Keys::new(NodeId::new("demo").expect("valid"))
+            .uav(&uav, towernav_protocol::Topic::Preview);
+        tx.send(crate::events::decode_sample(&key, &bytes).expect("preview"))
+            .expect("send");
+        let mut harness = harness(app, Rc::new(Cell::new(0.0)));
+        harness.run();
+
+        harness.get_by_label("T7 A1").click();
+        harness.run();
+        harness.get_by_label("Correct track 7 (now A1)");
+        harness.get_by_label("Tower id").focus();
+        harness.run();
+        harness.get_by_label("Tower id").type_text("B");
+        harness.run();
+        assert!(harness.query_by_label("A1 (A)").is_none(), "search filters");
+        harness.get_by_label("B1 (B)").click();
+        harness.run();
+        harness.get_by_label("Send B1").click();
+        harness.run();
+
+        let sent = match commands.try_recv() {
+            Ok(NetCommand::Correct(c)) => c,
+            other => panic!("expected a correction, got {other:?}"),
+        };
+        assert_eq!(
+            (sent.uav.as_str(), sent.track_id, sent.tower_id.as_deref()),
+            ("uav1", 7, Some("B1"))
+        );
+        harness.get_by_label("pending");
+
+        tx.send(NetEvent::Ack(CorrectionAck {
+            uav: uav.clone(),
+            request_id: sent.request_id,
+            accepted: true,
+            reason: None,
+        }))
+        .expect("send");
+        harness.run();
+        harness.get_by_label("accepted");
+        harness.get_by_label("Undo").click();
+        harness.run();
+        match commands.try_recv() {
+            Ok(NetCommand::Correct(c)) => {
+                assert_eq!((c.track_id, c.tower_id.as_deref()), (7, Some("A1")));
+                tx.send(NetEvent::Ack(CorrectionAck {
+                    uav,
+                    request_id: c.request_id,
+                    accepted: false,
+                    reason: Some("track 7 ended".into()),
+                }))
+                .expect("send");
+            }
+            other => panic!("expected the undo, got {other:?}"),
+        }
+        harness.run();
+        harness.get_by_label("rejected: track 7 ended");
     }
 }

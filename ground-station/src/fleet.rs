@@ -3,35 +3,64 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use towernav_geometry::{Datum, Geodetic};
-use towernav_protocol::{NodeId, PoseEstimate, StatusHeartbeat, TrackReport};
+use towernav_protocol::{DetectionReport, NodeId, PoseEstimate, StatusHeartbeat, TrackReport};
+
+use crate::corrections::Corrections;
+use crate::events::DecodedPreview;
+pub use crate::events::NetEvent;
 
 /// Poses kept per UAV for its trail on the map.
 pub const TRAIL_LEN: usize = 5000;
-
-/// A message from the network thread.
-#[derive(Debug, Clone, PartialEq)]
-pub enum NetEvent {
-    Pose(PoseEstimate),
-    Tracks(TrackReport),
-    Status(StatusHeartbeat),
-    /// A payload that did not decode: shown to the operator, never silently dropped.
-    Rejected {
-        key: String,
-        error: String,
-    },
-    /// The network side failed and stopped.
-    Failed(String),
-}
+/// A UAV whose last pose is older than this is stale.
+pub const STALE_AFTER_S: f64 = 2.0;
+/// Track reports kept per UAV (three seconds at 30 Hz), to match a preview's frame.
+const RECENT_TRACKS: usize = 90;
+/// The window the pose rate is counted over.
+const RATE_WINDOW_S: f64 = 2.0;
 
 #[derive(Debug, Clone, Default)]
 pub struct UavView {
     pub last_pose: Option<PoseEstimate>,
     /// When the last pose arrived, on the ground station's clock.
     pub last_pose_at_s: Option<f64>,
+    /// Arrival times of the poses in the last few seconds, for the rate.
+    pose_arrivals: VecDeque<f64>,
     /// East/north in the ground station's map frame.
     pub trail: VecDeque<[f64; 2]>,
+    /// The simulator's truth, east/north in the map frame.
+    pub truth_trail: VecDeque<[f64; 2]>,
     pub status: Option<StatusHeartbeat>,
-    pub tracks: Option<TrackReport>,
+    /// The last tracks reports, newest last: the preview is drawn with the one of its frame.
+    pub recent_tracks: VecDeque<TrackReport>,
+    pub detections: Option<DetectionReport>,
+    pub preview: Option<DecodedPreview>,
+    /// The liveliness token: `None` until one was seen either way.
+    pub alive: Option<bool>,
+}
+
+impl UavView {
+    pub fn tracks(&self) -> Option<&TrackReport> {
+        self.recent_tracks.back()
+    }
+
+    /// The tracks of frame `seq`, or the latest when that frame's are gone.
+    pub fn tracks_near(&self, seq: u64) -> Option<&TrackReport> {
+        self.recent_tracks
+            .iter()
+            .rev()
+            .find(|t| t.seq == seq)
+            .or_else(|| self.tracks())
+    }
+
+    /// Poses per second that arrived over the last two seconds.
+    pub fn pose_rate_hz(&self, now_s: f64) -> f64 {
+        let recent = self
+            .pose_arrivals
+            .iter()
+            .filter(|&&t| now_s - t <= RATE_WINDOW_S)
+            .count();
+        recent as f64 / RATE_WINDOW_S
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -39,8 +68,18 @@ pub struct Fleet {
     /// The map frame's origin; UAV positions are placed by their WGS84 fix, not their own ENU.
     pub datum: Datum,
     pub uavs: BTreeMap<NodeId, UavView>,
+    pub corrections: Corrections,
     pub rejected: Vec<(String, String)>,
+    /// Messages for the operator from the network side (recording, sends).
+    pub notices: Vec<String>,
     pub network_error: Option<String>,
+}
+
+fn push_bounded(trail: &mut VecDeque<[f64; 2]>, point: [f64; 2]) {
+    if trail.len() == TRAIL_LEN {
+        trail.pop_front();
+    }
+    trail.push_back(point);
 }
 
 impl Fleet {
@@ -48,36 +87,69 @@ impl Fleet {
         Self {
             datum,
             uavs: BTreeMap::new(),
+            corrections: Corrections::default(),
             rejected: Vec::new(),
+            notices: Vec::new(),
             network_error: None,
         }
+    }
+
+    fn en(&self, lat_deg: f64, lon_deg: f64, height_m: f64) -> [f64; 2] {
+        let p = self.datum.to_enu(&Geodetic {
+            lat_deg,
+            lon_deg,
+            height_m,
+        });
+        [p.x, p.y]
     }
 
     pub fn apply(&mut self, event: NetEvent, now_s: f64) {
         match event {
             NetEvent::Pose(p) => {
-                let en = self.datum.to_enu(&Geodetic {
-                    lat_deg: p.lat_deg,
-                    lon_deg: p.lon_deg,
-                    height_m: p.alt_m,
-                });
+                let en = self.en(p.lat_deg, p.lon_deg, p.alt_m);
                 let view = self.uavs.entry(p.uav.clone()).or_default();
-                if view.trail.len() == TRAIL_LEN {
-                    view.trail.pop_front();
+                push_bounded(&mut view.trail, en);
+                view.pose_arrivals.push_back(now_s);
+                while view
+                    .pose_arrivals
+                    .front()
+                    .is_some_and(|&t| now_s - t > RATE_WINDOW_S)
+                {
+                    view.pose_arrivals.pop_front();
                 }
-                view.trail.push_back([en.x, en.y]);
                 view.last_pose = Some(p);
                 view.last_pose_at_s = Some(now_s);
             }
+            NetEvent::Truth(t) => {
+                let en = self.en(t.lat_deg, t.lon_deg, t.alt_m);
+                push_bounded(&mut self.uavs.entry(t.uav).or_default().truth_trail, en);
+            }
             NetEvent::Tracks(t) => {
                 let uav = t.uav.clone();
-                self.uavs.entry(uav).or_default().tracks = Some(t);
+                let recent = &mut self.uavs.entry(uav).or_default().recent_tracks;
+                if recent.len() == RECENT_TRACKS {
+                    recent.pop_front();
+                }
+                recent.push_back(t);
             }
             NetEvent::Status(s) => {
                 let uav = s.uav.clone();
                 self.uavs.entry(uav).or_default().status = Some(s);
             }
+            NetEvent::Detections(d) => {
+                let uav = d.uav.clone();
+                self.uavs.entry(uav).or_default().detections = Some(d);
+            }
+            NetEvent::Preview(p) => {
+                let uav = p.meta.uav.clone();
+                self.uavs.entry(uav).or_default().preview = Some(p);
+            }
+            NetEvent::Ack(ack) => self.corrections.acknowledged(&ack),
+            NetEvent::Alive { uav, alive } => {
+                self.uavs.entry(uav).or_default().alive = Some(alive);
+            }
             NetEvent::Rejected { key, error } => self.rejected.push((key, error)),
+            NetEvent::Notice(text) => self.notices.push(text),
             NetEvent::Failed(e) => self.network_error = Some(e),
         }
     }
@@ -89,6 +161,12 @@ impl Fleet {
             .last_pose_at_s
             .map(|t| (now_s - t).max(0.0))
     }
+
+    /// Whether the UAV's poses stopped coming (it had some, and the last is old).
+    pub fn is_stale(&self, uav: &NodeId, now_s: f64) -> bool {
+        self.pose_age_s(uav, now_s)
+            .is_some_and(|age| age > STALE_AFTER_S)
+    }
 }
 
 #[cfg(test)]
@@ -96,34 +174,62 @@ mod tests {
     use super::*;
     use crate::test_support::pose;
 
-    #[test]
-    fn poses_build_a_trail_in_the_map_frame_and_an_age() {
-        let datum = Datum::new(Geodetic {
+    fn fleet() -> Fleet {
+        Fleet::new(Datum::new(Geodetic {
             lat_deg: 30.52,
             lon_deg: 114.36,
             height_m: 25.0,
-        });
-        let mut fleet = Fleet::new(datum);
-        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.36, 1)), 10.0);
-        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.361, 2)), 11.0);
-        let uav = NodeId::new("uav1").expect("valid");
-        let view = &fleet.uavs[&uav];
-        assert_eq!(view.trail.len(), 2);
-        assert!(
-            (view.trail[1][0] - 96.0).abs() < 1.0,
-            "0.001 deg of longitude at 30.5 N is ~96 m: {}",
-            view.trail[1][0]
-        );
-        assert_eq!(fleet.pose_age_s(&uav, 13.5), Some(2.5));
+        }))
     }
 
     #[test]
-    fn rejected_payloads_are_kept_for_the_operator() {
-        let mut fleet = Fleet::new(Datum::new(Geodetic {
-            lat_deg: 0.0,
-            lon_deg: 0.0,
-            height_m: 0.0,
-        }));
+    fn poses_build_a_trail_in_the_map_frame_an_age_and_a_rate() {
+        let mut fleet = fleet();
+        for i in 0..30 {
+            fleet.apply(
+                NetEvent::Pose(pose("uav1", 30.52, 114.36 + 1e-5 * f64::from(i), 1)),
+                10.0 + f64::from(i) / 30.0,
+            );
+        }
+        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.361, 2)), 11.0);
+        let uav = NodeId::new("uav1").expect("valid");
+        let view = &fleet.uavs[&uav];
+        assert_eq!(view.trail.len(), 31);
+        let last = view.trail.back().expect("trail");
+        assert!(
+            (last[0] - 96.0).abs() < 1.0,
+            "0.001 deg of longitude at 30.5 N is ~96 m: {}",
+            last[0]
+        );
+        // 31 poses in the last second, counted over a two-second window.
+        assert!((view.pose_rate_hz(11.0) - 15.5).abs() < 1e-9);
+        assert_eq!(view.pose_rate_hz(20.0), 0.0);
+        assert_eq!(fleet.pose_age_s(&uav, 13.5), Some(2.5));
+        assert!(fleet.is_stale(&uav, 13.5));
+        assert!(!fleet.is_stale(&uav, 12.0));
+    }
+
+    #[test]
+    fn liveliness_and_rejections_are_kept_for_the_operator() {
+        let mut fleet = fleet();
+        let uav = NodeId::new("u7").expect("valid");
+        fleet.apply(
+            NetEvent::Alive {
+                uav: uav.clone(),
+                alive: true,
+            },
+            0.0,
+        );
+        assert_eq!(fleet.uavs[&uav].alive, Some(true));
+        fleet.apply(
+            NetEvent::Alive {
+                uav: uav.clone(),
+                alive: false,
+            },
+            1.0,
+        );
+        assert_eq!(fleet.uavs[&uav].alive, Some(false));
+        assert!(!fleet.is_stale(&uav, 100.0), "never had a pose: not stale");
         fleet.apply(
             NetEvent::Rejected {
                 key: "not/a/key".into(),

@@ -2,10 +2,20 @@
 //!
 //! The UI thread never touches the network: `net` runs Zenoh on its own thread
 //! and hands decoded messages over a channel, waking the UI with `request_repaint`.
+//! The state the UI draws (`fleet`, `corrections`) is pure and clock-free.
 
 pub mod app;
+pub mod camera_view;
+pub mod corrections;
+pub mod events;
+pub mod file_browser;
 pub mod fleet;
+pub mod fleet_panel;
+pub mod landmark_editor;
 pub mod landmark_service;
+pub mod map_view;
 pub mod net;
-#[cfg(test)]
-mod test_support;
+pub mod recording;
+#[cfg(any(test, feature = "test-support"))]
+pub mod test_support;
+pub mod tiles;

@@ -3,16 +3,18 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Context;
 use clap::Parser;
-use towernav_ground_station::app::{GsApp, map_datum};
-use towernav_ground_station::net;
+use towernav_ground_station::app::{GsApp, GsOptions};
+use towernav_ground_station::net::{self, NetLink};
+use towernav_ground_station::recording;
 use towernav_landmark_db::{Author, LandmarkDb, import_csv};
 use towernav_protocol::NodeId;
 use towernav_protocol::session::Endpoints;
 
 #[derive(Parser)]
-#[command(about = "towernav ground station: landmark database and live fleet map")]
+#[command(
+    about = "towernav ground station: landmark database, live fleet map, camera view, corrections"
+)]
 struct Cli {
     /// The landmark database (created if missing).
     #[arg(long, default_value = "towers.sqlite")]
@@ -28,9 +30,21 @@ struct Cli {
     /// Zenoh endpoint to listen on, for edges that connect to the ground station.
     #[arg(long)]
     listen: Vec<String>,
-    /// Name stamped on database changes made from this ground station.
+    /// Name stamped on database changes and corrections made from this ground station.
     #[arg(long, env = "USER", default_value = "ground-station")]
     operator: String,
+    /// A local slippy-map tile folder (<zoom>/<x>/<y>.png) for the map background.
+    #[arg(long)]
+    tiles: Option<PathBuf>,
+    /// Replay this MCAP recording instead of joining the network.
+    #[arg(long)]
+    replay: Option<PathBuf>,
+    /// Replay speed (1 = as recorded, 0 = as fast as possible).
+    #[arg(long, default_value_t = 1.0)]
+    replay_speed: f64,
+    /// Close the window after this many seconds (screenshots, benchmarks).
+    #[arg(long)]
+    quit_after_s: Option<f64>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -46,14 +60,9 @@ fn main() -> anyhow::Result<()> {
         let n = import_csv(&mut db, csv, &Author::now(&cli.operator))?;
         tracing::info!(towers = n, file = %csv.display(), "imported");
     }
-    let landmarks = db.list()?;
-    let datum = map_datum(&landmarks).with_context(|| {
-        format!(
-            "{} holds no towers: import some with --import towers.csv",
-            cli.db.display()
-        )
-    })?;
-
+    if db.list()?.is_empty() {
+        tracing::warn!(db = %cli.db.display(), "no towers yet: add them in the Landmarks tab or with --import");
+    }
     let endpoints = Endpoints {
         listen: cli.listen.clone(),
         connect: cli.connect.clone(),
@@ -65,19 +74,47 @@ fn main() -> anyhow::Result<()> {
         .cloned()
         .collect::<Vec<_>>()
         .join(", ");
+    let first_request_id = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(1, |d| u64::try_from(d.as_millis()).unwrap_or(1));
+    let options = GsOptions {
+        listening_on,
+        operator: cli.operator.clone(),
+        first_request_id,
+        tiles: cli.tiles.clone(),
+        replaying: cli.replay.clone(),
+    };
+    if let Some(path) = &cli.replay {
+        // Refuse a bad recording before opening a window.
+        recording::read(path)?;
+    }
     let db_path = cli.db.clone();
     let start = Instant::now();
+    let quit_after_s = cli.quit_after_s;
     eframe::run_native(
         "towernav ground station",
-        eframe::NativeOptions::default(),
+        eframe::NativeOptions {
+            viewport: egui::ViewportBuilder::default().with_inner_size([1600.0, 900.0]),
+            ..Default::default()
+        },
         Box::new(move |cc| {
             let ctx = cc.egui_ctx.clone();
-            let events = net::spawn(endpoints, cli.fleet, Some(db_path), move || {
-                ctx.request_repaint()
-            });
-            let mut app = GsApp::new(&landmarks, datum, events, listening_on);
+            let wake = move || ctx.request_repaint();
+            let link = match &cli.replay {
+                Some(path) => {
+                    let (tx, _commands, link) = NetLink::detached();
+                    recording::spawn_replay(path, cli.replay_speed, tx, wake)?;
+                    link
+                }
+                None => net::spawn(endpoints, cli.fleet, Some(db_path), wake),
+            };
+            let mut app = GsApp::new(db, link, options)?;
             Ok(Box::new(FnApp(move |ui: &mut egui::Ui| {
-                app.show(ui, start.elapsed().as_secs_f64());
+                let now = start.elapsed().as_secs_f64();
+                app.show(ui, now);
+                if quit_after_s.is_some_and(|q| now > q) {
+                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+                }
                 // Ages tick even when no message arrives.
                 ui.ctx()
                     .request_repaint_after(std::time::Duration::from_millis(250));

@@ -1,11 +1,14 @@
-//! Fixtures shared by the ground station's tests.
+//! Fixtures shared by the ground station's tests and benches.
 
-use std::sync::mpsc::{Sender, channel};
+use std::sync::mpsc::Sender;
 
+use tokio::sync::mpsc::UnboundedReceiver;
+use towernav_landmark_db::{Author, LandmarkDb};
 use towernav_protocol::{LandmarkRecord, NodeId, PoseEstimate, PoseMethod, TowerType};
 
-use crate::app::{GsApp, map_datum};
-use crate::fleet::NetEvent;
+use crate::app::{GsApp, GsOptions};
+use crate::events::NetEvent;
+use crate::net::{NetCommand, NetLink};
 
 pub fn pose(uav: &str, lat_deg: f64, lon_deg: f64, seq: u64) -> PoseEstimate {
     PoseEstimate {
@@ -47,13 +50,19 @@ pub fn towers() -> Vec<LandmarkRecord> {
         .collect()
 }
 
-/// An app on two towers, and the sender standing in for the network thread.
-pub fn app() -> (Sender<NetEvent>, GsApp) {
-    let (tx, rx) = channel();
-    let landmarks = towers();
-    let datum = map_datum(&landmarks).expect("towers");
-    (
-        tx,
-        GsApp::new(&landmarks, datum, rx, "tcp/127.0.0.1:7447".into()),
+/// An app on an in-memory database of two towers; the sender stands in for the
+/// network thread, the receiver gets what the app asks the network to do.
+pub fn app() -> (Sender<NetEvent>, UnboundedReceiver<NetCommand>, GsApp) {
+    let mut db = LandmarkDb::open_in_memory().expect("in-memory database");
+    db.upsert_all(
+        &towers(),
+        &Author {
+            by: "test".into(),
+            at_unix_s: 0,
+        },
     )
+    .expect("towers");
+    let (tx, commands, link) = NetLink::detached();
+    let app = GsApp::new(db, link, GsOptions::default()).expect("app");
+    (tx, commands, app)
 }

@@ -99,6 +99,47 @@ pub fn export_geojson(records: &[LandmarkRecord]) -> Result<String, serde_json::
     })
 }
 
+/// OSM XML of the towers (`power=tower` nodes, new objects with negative ids as
+/// JOSM expects), with `ref`, `height`, `ele` and the type in [`OSM_TYPE_TAG`].
+pub fn export_osm_xml(records: &[LandmarkRecord]) -> String {
+    fn esc(s: &str) -> String {
+        s.replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+            .replace('"', "&quot;")
+    }
+    let mut out = String::from(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<osm version=\"0.6\" generator=\"towernav\">\n",
+    );
+    for (i, r) in records.iter().enumerate() {
+        out += &format!(
+            "  <node id=\"-{}\" lat=\"{:.9}\" lon=\"{:.9}\">\n",
+            i + 1,
+            r.lat_deg,
+            r.lon_deg
+        );
+        let mut tags = vec![
+            ("power", "tower".to_owned()),
+            ("ref", r.id.clone()),
+            (OSM_TYPE_TAG, r.tower_type.to_string()),
+            ("height", format!("{}", r.height_m)),
+            ("ele", format!("{}", r.ground_elev_m)),
+        ];
+        if let Some(line) = &r.line_name {
+            tags.push(("line_name", line.clone()));
+        }
+        if let Some(source) = &r.survey_source {
+            tags.push(("source", source.clone()));
+        }
+        for (k, v) in tags {
+            out += &format!("    <tag k=\"{}\" v=\"{}\"/>\n", esc(k), esc(&v));
+        }
+        out += "  </node>\n";
+    }
+    out += "</osm>\n";
+    out
+}
+
 /// How OSM tags choose a tower type: the first rule whose tag matches wins, else `default`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct OsmMapping {
@@ -109,7 +150,22 @@ pub struct OsmMapping {
     pub default_ground_elev_m: Option<f64>,
 }
 
+/// The tag `export_osm_xml` writes the tower type in; `OsmMapping::towernav` reads it back.
+pub const OSM_TYPE_TAG: &str = "towernav:type";
+
 impl OsmMapping {
+    /// Reads the types towernav wrote (`towernav:type=A` ...), as in its own OSM exports.
+    pub fn towernav() -> Self {
+        Self {
+            rules: TowerType::ALL
+                .iter()
+                .map(|t| (OSM_TYPE_TAG.to_owned(), t.to_string(), *t))
+                .collect(),
+            default: None,
+            default_ground_elev_m: None,
+        }
+    }
+
     /// Parses a rule written `key=value=TYPE`, e.g. `design=donau=A`.
     pub fn parse_rule(s: &str) -> Result<(String, String, TowerType), String> {
         let parts: Vec<&str> = s.splitn(3, '=').collect();
@@ -293,6 +349,32 @@ pub fn parse_height(s: &str) -> Result<f64, String> {
         .parse::<f64>()
         .map(|v| v * factor)
         .map_err(|_| format!("{s:?} is not a length (e.g. 35, 35 m, 115 ft)"))
+}
+
+#[cfg(test)]
+mod osm_export_tests {
+    use super::*;
+
+    #[test]
+    fn an_osm_export_imports_back_to_the_same_towers() {
+        let mut a = LandmarkRecord::new("L1-07", TowerType::C, 30.5205, 114.3601, 23.5, 41.0);
+        a.line_name = Some("220kV <Xinjin> & II".into());
+        let b = LandmarkRecord::new("L1-08", TowerType::A, 30.5215, 114.3611, 24.0, 33.0);
+        let xml = export_osm_xml(&[a.clone(), b.clone()]);
+        let parsed = parse_osm_xml(&xml, "export.osm", &OsmMapping::towernav()).expect("parse");
+        assert!(parsed.problems.is_empty(), "{:?}", parsed.problems);
+        let back = &parsed.records;
+        assert_eq!(back.len(), 2);
+        for (got, want) in back.iter().zip([&a, &b]) {
+            assert_eq!(
+                (got.id.as_str(), got.tower_type),
+                (want.id.as_str(), want.tower_type)
+            );
+            assert!((got.lat_deg - want.lat_deg).abs() < 1e-9);
+            assert!((got.height_m - want.height_m).abs() < 1e-9);
+            assert!((got.ground_elev_m - want.ground_elev_m).abs() < 1e-9);
+        }
+    }
 }
 
 #[cfg(test)]

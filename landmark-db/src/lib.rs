@@ -17,7 +17,7 @@ pub use towernav_geometry::geodesy;
 
 pub use csv_io::{RowProblem, export_csv, import_csv, parse_csv, read_csv};
 pub use error::{DbError, ImportError};
-pub use formats::{OsmMapping, export_geojson};
+pub use formats::{OSM_TYPE_TAG, OsmMapping, export_geojson, export_osm_xml};
 pub use import::{
     Format, ImportOptions, ImportReport, Parsed, Warning, import_file, import_parsed,
     likely_mistakes,

@@ -11,7 +11,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use comfy_table::{Table, presets::UTF8_BORDERS_ONLY};
 use towernav_landmark_db::{
     Author, DbError, Format, ImportError, ImportOptions, LandmarkDb, OsmMapping, export_csv,
-    export_geojson, import_file, likely_mistakes, validate,
+    export_geojson, export_osm_xml, import_file, likely_mistakes, validate,
 };
 use towernav_protocol::{LandmarkChangeOp, LandmarkRecord, TowerType};
 
@@ -86,7 +86,7 @@ enum Command {
 enum FileFormat {
     Csv,
     Geojson,
-    /// OpenStreetMap XML (import only).
+    /// OpenStreetMap XML (`power=tower` nodes; exports carry `towernav:type`).
     Osm,
     /// Overpass API JSON (import only).
     Overpass,
@@ -214,8 +214,12 @@ fn run(cli: Cli) -> Result<(), Failure> {
             osm_default_type,
             osm_ground_elev_m,
         } => {
+            // The operator's rules first, then towernav's own type tag (its OSM exports).
             let osm = OsmMapping {
-                rules: osm_map,
+                rules: osm_map
+                    .into_iter()
+                    .chain(OsmMapping::towernav().rules)
+                    .collect(),
                 default: osm_default_type,
                 default_ground_elev_m: osm_ground_elev_m,
             };
@@ -258,9 +262,10 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     out
                 }
                 FileFormat::Geojson => export_geojson(&records)?.into_bytes(),
-                FileFormat::Osm | FileFormat::Overpass => {
+                FileFormat::Osm => export_osm_xml(&records).into_bytes(),
+                FileFormat::Overpass => {
                     return Err(refused(
-                        "OSM formats are import only; export to csv or geojson".into(),
+                        "Overpass JSON is import only; export to csv, geojson or osm".into(),
                     ));
                 }
             };

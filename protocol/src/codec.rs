@@ -177,6 +177,7 @@ mod tests {
                 tower_type: TowerType::C,
                 tower_id: Some("C2".into()),
                 pinned: false,
+                confidence: Some(0.75),
             }],
         };
         assert_eq!(

@@ -25,10 +25,12 @@ pub enum Topic {
     Detections,
     /// [`crate::Preview`], edge -> anyone, a few times a second.
     Preview,
+    /// [`crate::TruthPose`], simulated edges only: where the UAV really was.
+    Truth,
 }
 
 impl Topic {
-    pub const ALL: [Topic; 7] = [
+    pub const ALL: [Topic; 8] = [
         Topic::Pose,
         Topic::Tracks,
         Topic::Status,
@@ -36,6 +38,7 @@ impl Topic {
         Topic::CorrectionAck,
         Topic::Detections,
         Topic::Preview,
+        Topic::Truth,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -47,6 +50,7 @@ impl Topic {
             Topic::CorrectionAck => "correction_ack",
             Topic::Detections => "detections",
             Topic::Preview => "preview",
+            Topic::Truth => "truth",
         }
     }
 

@@ -97,6 +97,10 @@ pub struct Track {
     pub tower_id: Option<String>,
     /// Whether an operator's correction pinned the binding.
     pub pinned: bool,
+    /// How sure the edge is of the binding, 0..=1: 1 when pinned or when it
+    /// agrees with the tracked pose, falling as it keeps disagreeing. `None` when unbound.
+    #[serde(default)]
+    pub confidence: Option<f64>,
 }
 
 /// All confirmed tracks of one frame.
@@ -323,6 +327,22 @@ pub struct Preview {
 
 impl Message for Preview {
     const KIND: &'static str = "preview";
+}
+
+/// Where a simulated UAV really was at a frame: published only by edges on
+/// the simulator, so the ground station can draw the true track beside the estimate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthPose {
+    pub uav: NodeId,
+    pub time_s: f64,
+    pub seq: u64,
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub alt_m: f64,
+}
+
+impl Message for TruthPose {
+    const KIND: &'static str = "truth";
 }
 
 /// Everything the pipeline reads of one camera frame: the detector's boxes and the IMU attitude

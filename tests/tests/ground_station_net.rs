@@ -1,40 +1,23 @@
-//! The ground station's network thread against a real Zenoh publisher on loopback:
-//! poses arrive decoded, and a payload that does not decode is reported, not dropped.
+//! The ground station's network thread against a real edge node on loopback:
+//! poses arrive decoded, the edge's liveliness shows, a payload that does not
+//! decode is reported (not dropped), a correction reaches the edge, and the
+//! session is recorded to an MCAP file that replays the same events.
 
-use std::sync::mpsc::RecvTimeoutError;
-use std::time::Duration;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
 
-use towernav_edge::shell::node::open_session;
-use towernav_ground_station::fleet::NetEvent;
-use towernav_ground_station::net;
+use towernav_edge::shell::node::{EdgeNode, open_session};
+use towernav_ground_station::events::NetEvent;
+use towernav_ground_station::net::{self, NetCommand};
+use towernav_ground_station::recording;
 use towernav_protocol::session::Endpoints;
-use towernav_protocol::{Keys, NodeId, PoseEstimate, PoseMethod, Topic, encode};
+use towernav_protocol::{IdCorrection, Keys, NodeId, PoseEstimate, PoseMethod, Topic};
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn poses_and_rejections_reach_the_ui_channel() -> anyhow::Result<()> {
-    let endpoint = towernav_tests::loopback_endpoint();
-    let fleet = NodeId::new("gsnet")?;
-    let uav = NodeId::new("uav3")?;
-    let edge = open_session(&Endpoints {
-        listen: vec![endpoint.clone()],
-        connect: vec![],
-    })
-    .await?;
-    let events = net::spawn(
-        Endpoints {
-            listen: vec![],
-            connect: vec![endpoint],
-        },
-        fleet.clone(),
-        None,
-        || {},
-    );
-
-    let key = Keys::new(fleet).uav(&uav, Topic::Pose);
-    let pose = PoseEstimate {
+fn pose(uav: &NodeId, seq: u64) -> PoseEstimate {
+    PoseEstimate {
         uav: uav.clone(),
-        time_s: 1.0,
-        seq: 30,
+        time_s: seq as f64 / 30.0,
+        seq,
         east_m: 10.0,
         north_m: 20.0,
         up_m: 30.0,
@@ -50,41 +33,156 @@ async fn poses_and_rejections_reach_the_ui_channel() -> anyhow::Result<()> {
         ],
         method: PoseMethod::SeedLbl,
         towers_used: vec!["A1".into()],
-    };
-    // Publish until the ground station's subscription has reached us (it connects asynchronously).
-    let mut got_pose = None;
-    for _ in 0..100 {
-        edge.put(key.clone(), encode(&pose)?)
-            .await
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        match events.recv_timeout(Duration::from_millis(100)) {
-            Ok(NetEvent::Pose(p)) => {
-                got_pose = Some(p);
-                break;
+    }
+}
+
+/// The next event `want` accepts, skipping others, within `timeout`.
+fn wait_for<T>(
+    events: &Receiver<NetEvent>,
+    timeout: Duration,
+    mut want: impl FnMut(NetEvent) -> Option<T>,
+) -> anyhow::Result<T> {
+    let end = Instant::now() + timeout;
+    loop {
+        let left = end.saturating_duration_since(Instant::now());
+        match events.recv_timeout(left) {
+            Ok(e) => {
+                if let Some(t) = want(e) {
+                    return Ok(t);
+                }
             }
-            Ok(other) => anyhow::bail!("unexpected event {other:?}"),
-            Err(RecvTimeoutError::Timeout) => continue,
+            Err(RecvTimeoutError::Timeout) => anyhow::bail!("timed out"),
             Err(RecvTimeoutError::Disconnected) => anyhow::bail!("the network thread stopped"),
         }
     }
-    assert_eq!(got_pose.as_ref(), Some(&pose));
+}
 
-    edge.put(
-        key.clone(),
-        br#"{"schema": 9, "kind": "pose", "body": {}}"#.to_vec(),
-    )
-    .await
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
-    loop {
-        match events.recv_timeout(Duration::from_secs(5))? {
-            NetEvent::Pose(_) => continue, // stragglers from the loop above
-            NetEvent::Rejected { key: k, error } => {
-                assert_eq!(k, key);
-                assert!(error.contains("schema version 9"), "{error}");
-                break;
-            }
-            other => anyhow::bail!("unexpected event {other:?}"),
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Result<()> {
+    let endpoint = towernav_tests::loopback_endpoint();
+    let fleet = NodeId::new("gsnet")?;
+    let uav = NodeId::new("uav3")?;
+    let session = open_session(&Endpoints {
+        listen: vec![endpoint.clone()],
+        connect: vec![],
+    })
+    .await?;
+    let edge = EdgeNode::new(session.clone(), fleet.clone(), uav.clone()).await?;
+    let dir = tempfile::tempdir()?;
+    let mcap = dir.path().join("session.mcap");
+    let link = net::spawn(
+        Endpoints {
+            listen: vec![],
+            connect: vec![endpoint],
+        },
+        fleet.clone(),
+        None,
+        || {},
+    );
+    link.commands
+        .send(NetCommand::StartRecording(mcap.clone()))
+        .map_err(|_| anyhow::anyhow!("network thread gone"))?;
+
+    // The edge's liveliness token is seen (history: it was declared before we joined).
+    wait_for(&link.events, Duration::from_secs(10), |e| match e {
+        NetEvent::Alive {
+            uav: u,
+            alive: true,
+        } if u == uav => Some(()),
+        _ => None,
+    })?;
+
+    // Publish until the ground station's subscription has reached us.
+    let mut got = None;
+    for seq in 0..100 {
+        edge.publish_pose(&pose(&uav, seq)).await?;
+        if let Ok(p) = wait_for(&link.events, Duration::from_millis(100), |e| match e {
+            NetEvent::Pose(p) => Some(p),
+            _ => None,
+        }) {
+            got = Some(p);
+            break;
         }
     }
+    let got = got.ok_or_else(|| anyhow::anyhow!("no pose reached the ground station"))?;
+    assert_eq!(got.uav, uav);
+
+    let key = Keys::new(fleet.clone()).uav(&uav, Topic::Tracks);
+    session
+        .put(
+            key.clone(),
+            br#"{"schema": 9, "kind": "tracks", "body": {}}"#.to_vec(),
+        )
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let error = wait_for(&link.events, Duration::from_secs(5), |e| match e {
+        NetEvent::Rejected { key: k, error } if k == key => Some(error),
+        _ => None,
+    })?;
+    assert!(error.contains("schema version 9"), "{error}");
+
+    // A correction from the ground station reaches the edge.
+    let correction = IdCorrection {
+        uav: uav.clone(),
+        request_id: 42,
+        track_id: 7,
+        tower_id: Some("B1".into()),
+        issued_by: "test".into(),
+    };
+    link.commands
+        .send(NetCommand::Correct(correction.clone()))
+        .map_err(|_| anyhow::anyhow!("network thread gone"))?;
+    let end = Instant::now() + Duration::from_secs(5);
+    let mut received = Vec::new();
+    while received.is_empty() && Instant::now() < end {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        received = edge.pending_corrections();
+    }
+    assert_eq!(received, vec![correction]);
+
+    // The edge goes away: its token is deleted.
+    drop(edge);
+    wait_for(&link.events, Duration::from_secs(10), |e| match e {
+        NetEvent::Alive {
+            uav: u,
+            alive: false,
+        } if u == uav => Some(()),
+        _ => None,
+    })?;
+
+    link.commands
+        .send(NetCommand::StopRecording)
+        .map_err(|_| anyhow::anyhow!("network thread gone"))?;
+    let notice = wait_for(&link.events, Duration::from_secs(5), |e| match e {
+        NetEvent::Notice(n) if n.starts_with("recorded") => Some(n),
+        _ => None,
+    })?;
+    let samples = recording::read(&mcap)?;
+    assert!(
+        notice.contains(&format!("recorded {} messages", samples.len())),
+        "{notice}"
+    );
+    let events: Vec<NetEvent> = samples.iter().filter_map(|s| s.event()).collect();
+    assert!(matches!(
+        events.first(),
+        Some(NetEvent::Alive { alive: true, .. })
+    ));
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, NetEvent::Pose(p) if p.seq == got.seq))
+    );
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, NetEvent::Rejected { .. }))
+    );
+    assert!(matches!(
+        events.last(),
+        Some(NetEvent::Alive { alive: false, .. })
+    ));
+    // The correction is in the recording too, on its own key.
+    let correction_key = Keys::new(fleet).uav(&uav, Topic::Correction);
+    assert!(samples.iter().any(|s| s.key == correction_key));
     Ok(())
 }

@@ -73,6 +73,7 @@ mod tests {
                 tower_type: TowerType::A,
                 tower_id: Some("A1".into()),
                 pinned: false,
+                confidence: None,
             }],
         };
         annotate(&mut image, &tracks, None);

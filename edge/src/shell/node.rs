@@ -10,7 +10,7 @@ use towernav_protocol::session::{Endpoints, session_config};
 
 use towernav_protocol::{
     CorrectionAck, DetectionReport, IdCorrection, Keys, Message, NodeId, PoseEstimate, Preview,
-    StatusHeartbeat, Topic, TrackReport, decode, encode,
+    StatusHeartbeat, Topic, TrackReport, TruthPose, decode, encode,
 };
 use zenoh::Session;
 use zenoh::handlers::FifoChannelHandler;
@@ -37,6 +37,7 @@ pub struct EdgeNode {
     status: Publisher<'static>,
     detections: Publisher<'static>,
     preview: Publisher<'static>,
+    truth: Publisher<'static>,
     corrections: Subscriber<FifoChannelHandler<Sample>>,
     _alive: LivelinessToken,
 }
@@ -75,6 +76,7 @@ impl EdgeNode {
         let status = publisher(Topic::Status).await?;
         let detections = publisher(Topic::Detections).await?;
         let preview = publisher(Topic::Preview).await?;
+        let truth = publisher(Topic::Truth).await?;
         let alive_key = keys.alive(&uav);
         let alive = session
             .liveliness()
@@ -95,6 +97,7 @@ impl EdgeNode {
             status,
             detections,
             preview,
+            truth,
             corrections,
             _alive: alive,
         })
@@ -133,6 +136,10 @@ impl EdgeNode {
 
     pub async fn publish_preview(&self, preview: &Preview) -> Result<(), ShellError> {
         Self::put(&self.preview, preview).await
+    }
+
+    pub async fn publish_truth(&self, truth: &TruthPose) -> Result<(), ShellError> {
+        Self::put(&self.truth, truth).await
     }
 
     pub async fn publish_tracks(&self, tracks: &TrackReport) -> Result<(), ShellError> {

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use towernav_geometry::Datum;
-use towernav_protocol::{Health, StatusHeartbeat};
+use towernav_protocol::{Health, StatusHeartbeat, TruthPose};
 
 use super::mavlink_out::MavlinkOut;
 use super::queue::DropOldest;
@@ -114,6 +114,8 @@ pub async fn run(
     let mut window: Vec<f64> = Vec::new();
     let mut last_status = Instant::now();
     let mut frames_since_status = 0u64;
+    // Dropped + failed at the last status: health reflects the last period only.
+    let mut troubles_at_status = 0u64;
     let wall = Instant::now();
     while let Some(p) = out_rx.recv().await {
         if let Some(sync) = sync.as_deref_mut()
@@ -158,8 +160,18 @@ pub async fn run(
         let latency = p.captured.elapsed().as_secs_f64() * 1e3;
         latency_ms.push(latency);
         window.push(latency);
-        if let Some(en) = p.truth_en {
-            record.truth_en.push(en);
+        if let Some(truth) = p.truth_in_world {
+            record.truth_en.push((truth.x, truth.y));
+            let g = datum.to_geodetic(&truth);
+            node.publish_truth(&TruthPose {
+                uav: node.uav().clone(),
+                time_s: p.time_s,
+                seq: p.seq,
+                lat_deg: g.lat_deg,
+                lon_deg: g.lon_deg,
+                alt_m: g.height_m,
+            })
+            .await?;
         }
         record.frames += 1;
         frames_since_status += 1;
@@ -179,7 +191,7 @@ pub async fn run(
                 datum_lat_deg: datum.origin.lat_deg,
                 datum_lon_deg: datum.origin.lon_deg,
                 datum_alt_m: datum.origin.height_m,
-                health: if dropped + failed > 0 {
+                health: if dropped + failed > troubles_at_status {
                     Health::Degraded
                 } else {
                     Health::Ok
@@ -192,6 +204,7 @@ pub async fn run(
             })
             .await?;
             window.clear();
+            troubles_at_status = dropped + failed;
             last_status = Instant::now();
             frames_since_status = 0;
         }

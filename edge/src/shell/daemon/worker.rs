@@ -47,8 +47,8 @@ pub struct Processed {
     pub acks: Vec<CorrectionAck>,
     /// Towers in the map the frame was localized against.
     pub landmarks: u32,
-    /// True horizontal position (simulator only), for scoring.
-    pub truth_en: Option<(f64, f64)>,
+    /// True position in the mission's ENU frame (simulator only), for scoring and the true track.
+    pub truth_in_world: Option<nalgebra::Point3<f64>>,
 }
 
 /// What the worker measured over the whole run.
@@ -206,10 +206,7 @@ impl Worker {
                 preview,
                 acks,
                 landmarks: self.pipeline.map().towers.len() as u32,
-                truth_en: frame
-                    .truth
-                    .as_ref()
-                    .map(|t| (t.pose.position_in_world.x, t.pose.position_in_world.y)),
+                truth_in_world: frame.truth.as_ref().map(|t| t.pose.position_in_world),
             };
             if out.blocking_send(processed).is_err() {
                 break;

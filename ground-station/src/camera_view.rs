@@ -1,0 +1,287 @@
+//! The selected UAV's camera: the latest preview with its tracks' boxes, track
+//! ids and bound tower ids, coloured by how sure the binding is. Clicking a box
+//! opens the correction picker; sent corrections are listed with their state.
+
+use egui::{Color32, Rect, Sense, Stroke, pos2, vec2};
+use towernav_protocol::{NodeId, Track};
+
+use crate::corrections::{CorrectionState, Corrections};
+use crate::fleet::UavView;
+use crate::map_view::MapTower;
+
+/// A correction the operator is preparing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Picking {
+    pub uav: NodeId,
+    pub track_id: u64,
+    /// The track's binding when it was clicked.
+    pub current: Option<String>,
+    pub search: String,
+    pub choice: Option<String>,
+}
+
+#[derive(Default)]
+pub struct CameraState {
+    /// The uploaded preview: whose, which frame.
+    texture: Option<(NodeId, u64, egui::TextureHandle)>,
+    pub picking: Option<Picking>,
+}
+
+/// What the operator asked for.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CameraAction {
+    Send {
+        uav: NodeId,
+        track_id: u64,
+        tower: Option<String>,
+        previous: Option<String>,
+    },
+    Undo(u64),
+}
+
+/// Binding colour: blue when pinned by an operator, green to orange as the
+/// edge grows less sure, grey when unbound.
+pub fn binding_color(track: &Track) -> Color32 {
+    if track.pinned {
+        return Color32::from_rgb(80, 160, 255);
+    }
+    match (track.tower_id.as_ref(), track.confidence) {
+        (None, _) => Color32::GRAY,
+        (Some(_), Some(c)) if c >= 0.8 => Color32::from_rgb(60, 220, 90),
+        (Some(_), Some(c)) if c >= 0.4 => Color32::from_rgb(240, 220, 60),
+        (Some(_), _) => Color32::from_rgb(255, 140, 40),
+    }
+}
+
+pub fn track_label(track: &Track) -> String {
+    format!(
+        "T{} {}",
+        track.track_id,
+        track.tower_id.as_deref().unwrap_or("?")
+    )
+}
+
+pub fn show(
+    ui: &mut egui::Ui,
+    state: &mut CameraState,
+    uav: &NodeId,
+    view: &UavView,
+    corrections: &Corrections,
+    towers: &[MapTower],
+) -> Option<CameraAction> {
+    let mut action = None;
+    ui.heading(format!("Camera: {uav}"));
+    match &view.preview {
+        None => {
+            ui.label("No preview yet.");
+        }
+        Some(preview) => {
+            let stale_texture = state
+                .texture
+                .as_ref()
+                .is_none_or(|(u, seq, _)| u != uav || *seq != preview.meta.seq);
+            if stale_texture {
+                let image = egui::ImageData::Color(preview.image.clone());
+                match state.texture.as_mut().filter(|(u, _, _)| u == uav) {
+                    Some((_, seq, tex)) => {
+                        tex.set(image, egui::TextureOptions::LINEAR);
+                        *seq = preview.meta.seq;
+                    }
+                    None => {
+                        let tex = ui.ctx().load_texture(
+                            format!("preview {uav}"),
+                            image,
+                            egui::TextureOptions::LINEAR,
+                        );
+                        state.texture = Some((uav.clone(), preview.meta.seq, tex));
+                    }
+                }
+            }
+            let (fw, fh) = (
+                f64::from(preview.meta.frame_width.max(1)),
+                f64::from(preview.meta.frame_height.max(1)),
+            );
+            let width = ui.available_width().max(64.0);
+            let height = width * (fh / fw) as f32;
+            let (rect, _) = ui.allocate_exact_size(vec2(width, height), Sense::hover());
+            if let Some((_, _, tex)) = &state.texture {
+                ui.painter().image(
+                    tex.id(),
+                    rect,
+                    Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0)),
+                    Color32::WHITE,
+                );
+            }
+            let scale = f64::from(width) / fw;
+            let tracks = view.tracks_near(preview.meta.seq);
+            for track in tracks.iter().flat_map(|t| &t.tracks) {
+                let b = &track.bbox;
+                let r = Rect::from_min_max(
+                    rect.min + vec2((b.left * scale) as f32, (b.top * scale) as f32),
+                    rect.min + vec2((b.right * scale) as f32, (b.bottom * scale) as f32),
+                );
+                let color = binding_color(track);
+                let label = track_label(track);
+                let response = ui
+                    .interact(
+                        r,
+                        ui.scope_id().with(("track", track.track_id)),
+                        Sense::click(),
+                    )
+                    .on_hover_text(match track.confidence {
+                        Some(c) => format!("binding confidence {c:.2}; click to correct"),
+                        None => "unbound; click to bind".into(),
+                    });
+                response
+                    .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, &label));
+                let stroke = if response.hovered() { 3.0 } else { 2.0 };
+                ui.painter().rect_stroke(
+                    r,
+                    0.0,
+                    Stroke::new(stroke, color),
+                    egui::StrokeKind::Outside,
+                );
+                ui.painter().text(
+                    r.left_top() - vec2(0.0, 2.0),
+                    egui::Align2::LEFT_BOTTOM,
+                    &label,
+                    egui::FontId::proportional(12.0),
+                    color,
+                );
+                if response.clicked() {
+                    state.picking = Some(Picking {
+                        uav: uav.clone(),
+                        track_id: track.track_id,
+                        current: track.tower_id.clone(),
+                        search: String::new(),
+                        choice: None,
+                    });
+                }
+            }
+        }
+    }
+    if let Some(pick) = state.picking.as_mut().filter(|p| &p.uav == uav) {
+        ui.separator();
+        let (send, cancel) = picker(ui, pick, towers, corrections);
+        let done = send.is_some() || cancel;
+        if let Some(tower) = send {
+            action = Some(CameraAction::Send {
+                uav: pick.uav.clone(),
+                track_id: pick.track_id,
+                tower,
+                previous: pick.current.clone(),
+            });
+        }
+        if done {
+            state.picking = None;
+        }
+    }
+    ui.separator();
+    if let Some(undo) = history(ui, uav, corrections) {
+        action = Some(CameraAction::Undo(undo));
+    }
+    action
+}
+
+/// The tower chooser: search by id; returns (what to send, cancelled).
+fn picker(
+    ui: &mut egui::Ui,
+    pick: &mut Picking,
+    towers: &[MapTower],
+    corrections: &Corrections,
+) -> (Option<Option<String>>, bool) {
+    ui.label(format!(
+        "Correct track {} (now {})",
+        pick.track_id,
+        pick.current.as_deref().unwrap_or("unbound")
+    ));
+    if corrections.pending_for(&pick.uav, pick.track_id).is_some() {
+        ui.colored_label(Color32::YELLOW, "a correction of this track is pending");
+    }
+    ui.horizontal(|ui| {
+        let name = ui.label("Tower id");
+        ui.add(egui::TextEdit::singleline(&mut pick.search).hint_text("search"))
+            .labelled_by(name.id);
+    });
+    let needle = pick.search.to_lowercase();
+    egui::ScrollArea::vertical()
+        .max_height(120.0)
+        .id_salt("tower picker")
+        .show(ui, |ui| {
+            for t in towers
+                .iter()
+                .filter(|t| t.id.to_lowercase().contains(&needle))
+                .take(200)
+            {
+                let chosen = pick.choice.as_deref() == Some(t.id.as_str());
+                if ui
+                    .selectable_label(chosen, format!("{} ({})", t.id, t.tower_type))
+                    .clicked()
+                {
+                    pick.choice = Some(t.id.clone());
+                }
+            }
+        });
+    let mut send = None;
+    let mut cancel = false;
+    ui.horizontal(|ui| {
+        let label = match &pick.choice {
+            Some(id) => format!("Send {id}"),
+            None => "Send".into(),
+        };
+        if ui
+            .add_enabled(pick.choice.is_some(), egui::Button::new(label))
+            .clicked()
+        {
+            send = Some(pick.choice.clone());
+        }
+        if ui.button("Unbind").clicked() {
+            send = Some(None);
+        }
+        cancel = ui.button("Cancel").clicked();
+    });
+    (send, cancel)
+}
+
+/// This UAV's corrections, newest first, with their state; returns an undo request.
+fn history(ui: &mut egui::Ui, uav: &NodeId, corrections: &Corrections) -> Option<u64> {
+    let mut undo = None;
+    ui.label("Corrections");
+    let mine: Vec<_> = corrections
+        .sent
+        .iter()
+        .rev()
+        .filter(|c| &c.message.uav == uav)
+        .take(20)
+        .collect();
+    if mine.is_empty() {
+        ui.weak("none sent; click a box to correct its tower");
+    }
+    for c in mine {
+        ui.horizontal(|ui| {
+            let m = &c.message;
+            let what = format!(
+                "#{} T{} -> {}",
+                m.request_id,
+                m.track_id,
+                m.tower_id.as_deref().unwrap_or("unbound")
+            );
+            ui.label(what);
+            match &c.state {
+                CorrectionState::Pending => {
+                    ui.colored_label(Color32::YELLOW, "pending");
+                }
+                CorrectionState::Accepted => {
+                    ui.colored_label(Color32::LIGHT_GREEN, "accepted");
+                    if !c.undone && ui.small_button("Undo").clicked() {
+                        undo = Some(m.request_id);
+                    }
+                }
+                CorrectionState::Rejected(reason) => {
+                    ui.colored_label(Color32::RED, format!("rejected: {reason}"));
+                }
+            }
+        });
+    }
+    undo
+}

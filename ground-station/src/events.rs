@@ -1,0 +1,154 @@
+//! What the network thread (or a replayed recording) hands the UI, and how a
+//! Zenoh sample becomes one. Pure: the same decoding serves live traffic and replay.
+
+use std::sync::Arc;
+
+use towernav_protocol::{
+    CorrectionAck, DetectionReport, Keys, NodeId, PoseEstimate, Preview, StatusHeartbeat, Topic,
+    TrackReport, TruthPose, decode,
+};
+
+/// A camera preview with its JPEG already decoded (off the UI thread).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecodedPreview {
+    pub meta: Preview,
+    pub image: Arc<egui::ColorImage>,
+}
+
+/// A message from the network thread.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NetEvent {
+    Pose(PoseEstimate),
+    Tracks(TrackReport),
+    Status(StatusHeartbeat),
+    Detections(DetectionReport),
+    Preview(DecodedPreview),
+    Truth(TruthPose),
+    Ack(CorrectionAck),
+    /// A UAV's liveliness token appeared (`true`) or went away.
+    Alive {
+        uav: NodeId,
+        alive: bool,
+    },
+    /// A payload that did not decode: shown to the operator, never silently dropped.
+    Rejected {
+        key: String,
+        error: String,
+    },
+    /// Something the operator should read: a recording started or stopped, a send failed.
+    Notice(String),
+    /// The network side failed and stopped.
+    Failed(String),
+}
+
+/// The event a sample on a per-UAV key stands for. `None` for the ground
+/// station's own outbound traffic (corrections), which it does not draw.
+pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
+    let rejected = |error: String| NetEvent::Rejected {
+        key: key.to_owned(),
+        error,
+    };
+    let parsed = match Keys::parse_uav(key) {
+        Ok(parsed) => parsed,
+        Err(e) => return Some(rejected(e.to_string())),
+    };
+    let event = match parsed.topic {
+        Topic::Pose => decode(bytes).map(NetEvent::Pose),
+        Topic::Tracks => decode(bytes).map(NetEvent::Tracks),
+        Topic::Status => decode(bytes).map(NetEvent::Status),
+        Topic::Detections => decode(bytes).map(NetEvent::Detections),
+        Topic::Truth => decode(bytes).map(NetEvent::Truth),
+        Topic::CorrectionAck => decode(bytes).map(NetEvent::Ack),
+        Topic::Preview => {
+            return Some(match decode::<Preview>(bytes) {
+                Ok(meta) => match decode_jpeg(&meta.jpeg) {
+                    Ok(image) => NetEvent::Preview(DecodedPreview {
+                        meta,
+                        image: Arc::new(image),
+                    }),
+                    Err(e) => rejected(format!("preview JPEG: {e}")),
+                },
+                Err(e) => rejected(e.to_string()),
+            });
+        }
+        Topic::Correction => return None,
+    };
+    Some(event.unwrap_or_else(|e| rejected(e.to_string())))
+}
+
+/// A liveliness sample: a token put or deleted on `towernav/<fleet>/alive/<uav>`.
+pub fn decode_alive(key: &str, alive: bool) -> NetEvent {
+    match Keys::parse_alive(key) {
+        Ok(uav) => NetEvent::Alive { uav, alive },
+        Err(e) => NetEvent::Rejected {
+            key: key.to_owned(),
+            error: e.to_string(),
+        },
+    }
+}
+
+fn decode_jpeg(jpeg: &[u8]) -> Result<egui::ColorImage, image::ImageError> {
+    let rgb = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)?.to_rgb8();
+    let size = [rgb.width() as usize, rgb.height() as usize];
+    Ok(egui::ColorImage::from_rgb(size, rgb.as_raw()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use towernav_protocol::encode;
+
+    fn key(topic: Topic) -> String {
+        Keys::new(NodeId::new("demo").expect("valid"))
+            .uav(&NodeId::new("u1").expect("valid"), topic)
+    }
+
+    #[test]
+    fn a_preview_arrives_decoded_and_a_bad_jpeg_is_rejected_with_its_key() {
+        let mut jpeg = Vec::new();
+        image::RgbImage::from_pixel(8, 4, image::Rgb([200, 10, 10]))
+            .write_to(
+                &mut std::io::Cursor::new(&mut jpeg),
+                image::ImageFormat::Jpeg,
+            )
+            .expect("jpeg");
+        let mut preview = Preview {
+            uav: NodeId::new("u1").expect("valid"),
+            time_s: 1.0,
+            seq: 3,
+            frame_width: 1280,
+            frame_height: 720,
+            jpeg,
+        };
+        let bytes = encode(&preview).expect("encode");
+        match decode_sample(&key(Topic::Preview), &bytes) {
+            Some(NetEvent::Preview(p)) => {
+                assert_eq!(p.image.size, [8, 4]);
+                assert!(p.image.pixels[0].r() > 150, "{:?}", p.image.pixels[0]);
+            }
+            other => panic!("expected a preview, got {other:?}"),
+        }
+        preview.jpeg = b"not a jpeg".to_vec();
+        let bytes = encode(&preview).expect("encode");
+        match decode_sample(&key(Topic::Preview), &bytes) {
+            Some(NetEvent::Rejected { key: k, error }) => {
+                assert_eq!(k, key(Topic::Preview));
+                assert!(error.contains("preview JPEG"), "{error}");
+            }
+            other => panic!("expected a rejection, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn own_corrections_are_skipped_and_bad_keys_rejected() {
+        assert_eq!(decode_sample(&key(Topic::Correction), b"{}"), None);
+        assert!(matches!(
+            decode_sample("towernav/demo/other", b"{}"),
+            Some(NetEvent::Rejected { .. })
+        ));
+        assert!(matches!(
+            decode_alive("towernav/demo/alive/u1", false),
+            NetEvent::Alive { alive: false, .. }
+        ));
+    }
+}

@@ -1,0 +1,573 @@
+//! The landmark editor: a table that sorts and filters, a form that adds and
+//! edits with validation shown beside each field, delete with confirmation,
+//! import and export by path or file browser, and the edit history. It only
+//! proposes changes ([`EditorAction`]); the app writes them to the database.
+
+use egui::{Color32, RichText};
+use towernav_landmark_db::validate;
+use towernav_protocol::{LandmarkChange, LandmarkChangeOp, LandmarkRecord, TowerType};
+
+use crate::file_browser::FileBrowser;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FileFormat {
+    Csv,
+    GeoJson,
+    Osm,
+}
+
+impl FileFormat {
+    pub const ALL: [FileFormat; 3] = [FileFormat::Csv, FileFormat::GeoJson, FileFormat::Osm];
+
+    pub fn label(self) -> &'static str {
+        match self {
+            FileFormat::Csv => "CSV",
+            FileFormat::GeoJson => "GeoJSON",
+            FileFormat::Osm => "OSM XML",
+        }
+    }
+}
+
+/// What the operator asked the database for.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EditorAction {
+    Upsert(LandmarkRecord),
+    Delete(String),
+    Import(std::path::PathBuf, FileFormat),
+    Export(std::path::PathBuf, FileFormat),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Column {
+    Id,
+    Type,
+    Lat,
+    Lon,
+    Elev,
+    Height,
+    Line,
+    Revision,
+}
+
+/// The form's fields as typed, so a half-typed number is kept and flagged, not lost.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Form {
+    pub id: String,
+    pub tower_type: TowerType,
+    pub lat: String,
+    pub lon: String,
+    pub elev: String,
+    pub height: String,
+    pub line_name: String,
+    pub survey_source: String,
+    pub notes: String,
+}
+
+impl Default for Form {
+    fn default() -> Self {
+        Self {
+            id: String::new(),
+            tower_type: TowerType::A,
+            lat: String::new(),
+            lon: String::new(),
+            elev: String::new(),
+            height: String::new(),
+            line_name: String::new(),
+            survey_source: String::new(),
+            notes: String::new(),
+        }
+    }
+}
+
+/// A field that is wrong, and why, for display beside it.
+pub type FieldErrors = Vec<(&'static str, String)>;
+
+impl Form {
+    pub fn from_record(r: &LandmarkRecord) -> Self {
+        Self {
+            id: r.id.clone(),
+            tower_type: r.tower_type,
+            lat: r.lat_deg.to_string(),
+            lon: r.lon_deg.to_string(),
+            elev: r.ground_elev_m.to_string(),
+            height: r.height_m.to_string(),
+            line_name: r.line_name.clone().unwrap_or_default(),
+            survey_source: r.survey_source.clone().unwrap_or_default(),
+            notes: r.notes.clone(),
+        }
+    }
+
+    /// The record, or every field that is wrong (numbers that do not parse,
+    /// then the database's own validation).
+    pub fn record(&self, base: Option<&LandmarkRecord>) -> Result<LandmarkRecord, FieldErrors> {
+        let mut errors = FieldErrors::new();
+        let mut number = |field: &'static str, text: &str| match text.trim().parse::<f64>() {
+            Ok(v) => v,
+            Err(_) => {
+                let why = if text.trim().is_empty() {
+                    "is required".to_owned()
+                } else {
+                    format!("{text:?} is not a number")
+                };
+                errors.push((field, why));
+                f64::NAN
+            }
+        };
+        let lat = number("lat_deg", &self.lat);
+        let lon = number("lon_deg", &self.lon);
+        let elev = number("ground_elev_m", &self.elev);
+        let height = number("height_m", &self.height);
+        if !errors.is_empty() {
+            return Err(errors);
+        }
+        let optional = |s: &str| (!s.trim().is_empty()).then(|| s.trim().to_owned());
+        let mut record = base.cloned().unwrap_or_else(|| {
+            LandmarkRecord::new(self.id.trim(), self.tower_type, lat, lon, elev, height)
+        });
+        record.id = self.id.trim().to_owned();
+        record.tower_type = self.tower_type;
+        record.lat_deg = lat;
+        record.lon_deg = lon;
+        record.ground_elev_m = elev;
+        record.height_m = height;
+        record.line_name = optional(&self.line_name);
+        record.survey_source = optional(&self.survey_source);
+        record.notes = self.notes.trim().to_owned();
+        validate(&record).map_err(|e| vec![(e.field, e.reason)])?;
+        Ok(record)
+    }
+}
+
+pub struct EditorState {
+    pub filter: String,
+    sort: (Column, bool),
+    pub form: Form,
+    /// The record being edited (its id as stored), `None` when adding.
+    pub editing: Option<String>,
+    pub confirm_delete: Option<String>,
+    /// The outcome of the last action, for the operator: (ok, text).
+    pub message: Option<(bool, String)>,
+    pub io_path: String,
+    pub io_format: FileFormat,
+    browser: Option<FileBrowser>,
+}
+
+impl Default for EditorState {
+    fn default() -> Self {
+        Self {
+            filter: String::new(),
+            sort: (Column::Id, true),
+            form: Form::default(),
+            editing: None,
+            confirm_delete: None,
+            message: None,
+            io_path: String::new(),
+            io_format: FileFormat::Csv,
+            browser: None,
+        }
+    }
+}
+
+fn cmp_f64(a: f64, b: f64) -> std::cmp::Ordering {
+    a.total_cmp(&b)
+}
+
+/// The rows the table shows: filtered by id, type, line or source, then sorted.
+fn rows<'a>(state: &EditorState, records: &'a [LandmarkRecord]) -> Vec<&'a LandmarkRecord> {
+    let needle = state.filter.to_lowercase();
+    let mut rows: Vec<&LandmarkRecord> = records
+        .iter()
+        .filter(|r| {
+            needle.is_empty()
+                || r.id.to_lowercase().contains(&needle)
+                || r.tower_type.as_str().eq_ignore_ascii_case(&needle)
+                || r.line_name
+                    .as_deref()
+                    .is_some_and(|l| l.to_lowercase().contains(&needle))
+                || r.survey_source
+                    .as_deref()
+                    .is_some_and(|l| l.to_lowercase().contains(&needle))
+        })
+        .collect();
+    let (column, ascending) = state.sort;
+    rows.sort_by(|a, b| {
+        let o = match column {
+            Column::Id => a.id.cmp(&b.id),
+            Column::Type => a.tower_type.index().cmp(&b.tower_type.index()),
+            Column::Lat => cmp_f64(a.lat_deg, b.lat_deg),
+            Column::Lon => cmp_f64(a.lon_deg, b.lon_deg),
+            Column::Elev => cmp_f64(a.ground_elev_m, b.ground_elev_m),
+            Column::Height => cmp_f64(a.height_m, b.height_m),
+            Column::Line => a.line_name.cmp(&b.line_name),
+            Column::Revision => a.revision.cmp(&b.revision),
+        };
+        if ascending { o } else { o.reverse() }
+    });
+    rows
+}
+
+pub fn show(
+    ui: &mut egui::Ui,
+    state: &mut EditorState,
+    records: &[LandmarkRecord],
+) -> Option<EditorAction> {
+    let mut action = None;
+    egui::Panel::right("landmark form")
+        .default_size(330.0)
+        .show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                action = form(ui, state, records).or(action.take());
+                ui.separator();
+                action = files(ui, state).or(action.take());
+            });
+        });
+    egui::CentralPanel::default().show(ui, |ui| {
+        ui.horizontal(|ui| {
+            let name = ui.label("Filter");
+            ui.add(
+                egui::TextEdit::singleline(&mut state.filter).hint_text("id, type, line or source"),
+            )
+            .labelled_by(name.id);
+            ui.label(format!("{} towers", records.len()));
+        });
+        table(ui, state, records);
+    });
+    action
+}
+
+fn table(ui: &mut egui::Ui, state: &mut EditorState, records: &[LandmarkRecord]) {
+    let shown = rows(state, records);
+    egui::ScrollArea::both()
+        .id_salt("landmark table")
+        .show(ui, |ui| {
+            egui::Grid::new("landmarks")
+                .striped(true)
+                .num_columns(8)
+                .show(ui, |ui| {
+                    for (column, name) in [
+                        (Column::Id, "Id"),
+                        (Column::Type, "Type"),
+                        (Column::Lat, "Lat"),
+                        (Column::Lon, "Lon"),
+                        (Column::Elev, "Ground (m)"),
+                        (Column::Height, "Height (m)"),
+                        (Column::Line, "Line"),
+                        (Column::Revision, "Rev"),
+                    ] {
+                        let arrow = match state.sort {
+                            (c, true) if c == column => " ^",
+                            (c, false) if c == column => " v",
+                            _ => "",
+                        };
+                        if ui.button(format!("{name}{arrow}")).clicked() {
+                            state.sort = match state.sort {
+                                (c, asc) if c == column => (c, !asc),
+                                _ => (column, true),
+                            };
+                        }
+                    }
+                    ui.end_row();
+                    let mut chosen = None;
+                    for r in shown {
+                        let editing = state.editing.as_deref() == Some(r.id.as_str());
+                        if ui.selectable_label(editing, &r.id).clicked() {
+                            chosen = Some(r);
+                        }
+                        ui.label(r.tower_type.as_str());
+                        ui.label(format!("{:.6}", r.lat_deg));
+                        ui.label(format!("{:.6}", r.lon_deg));
+                        ui.label(format!("{:.1}", r.ground_elev_m));
+                        ui.label(format!("{:.1}", r.height_m));
+                        ui.label(r.line_name.as_deref().unwrap_or(""));
+                        ui.label(r.revision.to_string()).on_hover_text(format!(
+                            "by {} at unix {}",
+                            r.updated_by, r.updated_at_unix_s
+                        ));
+                        ui.end_row();
+                    }
+                    if let Some(r) = chosen {
+                        state.form = Form::from_record(r);
+                        state.editing = Some(r.id.clone());
+                        state.confirm_delete = None;
+                    }
+                });
+        });
+}
+
+fn field(ui: &mut egui::Ui, label: &str, text: &mut String, error: Option<&String>) {
+    let name = ui.label(label);
+    ui.add(egui::TextEdit::singleline(text).desired_width(160.0))
+        .labelled_by(name.id);
+    ui.end_row();
+    if let Some(e) = error {
+        ui.label("");
+        ui.colored_label(Color32::RED, e);
+        ui.end_row();
+    }
+}
+
+fn form(
+    ui: &mut egui::Ui,
+    state: &mut EditorState,
+    records: &[LandmarkRecord],
+) -> Option<EditorAction> {
+    let base = state
+        .editing
+        .as_deref()
+        .and_then(|id| records.iter().find(|r| r.id == id));
+    ui.heading(match base {
+        Some(r) => format!("Edit {} (rev {})", r.id, r.revision),
+        None => "Add a tower".into(),
+    });
+    let result = state.form.record(base);
+    let errors = result.as_ref().err().cloned().unwrap_or_default();
+    let error = |field: &str| errors.iter().find(|(f, _)| *f == field).map(|(_, e)| e);
+    let f = &mut state.form;
+    let editing = state.editing.is_some();
+    egui::Grid::new("landmark fields")
+        .num_columns(2)
+        .show(ui, |ui| {
+            if editing {
+                // An id is the tower's identity on the edges: renaming is delete + add.
+                ui.label("Id");
+                ui.label(RichText::new(&f.id).strong());
+                ui.end_row();
+            } else {
+                field(ui, "Id", &mut f.id, error("id"));
+            }
+            ui.label("Type");
+            egui::ComboBox::new("tower type", "type")
+                .selected_text(f.tower_type.as_str())
+                .show_ui(ui, |ui| {
+                    for t in TowerType::ALL {
+                        ui.selectable_value(&mut f.tower_type, t, t.as_str());
+                    }
+                });
+            ui.end_row();
+            field(ui, "Latitude (deg)", &mut f.lat, error("lat_deg"));
+            field(ui, "Longitude (deg)", &mut f.lon, error("lon_deg"));
+            field(
+                ui,
+                "Ground elevation (m)",
+                &mut f.elev,
+                error("ground_elev_m"),
+            );
+            field(ui, "Height (m)", &mut f.height, error("height_m"));
+            field(ui, "Line", &mut f.line_name, error("line_name"));
+            field(
+                ui,
+                "Survey source",
+                &mut f.survey_source,
+                error("survey_source"),
+            );
+            field(ui, "Notes", &mut f.notes, error("notes"));
+        });
+    // Errors on fields the form has no box for (e.g. base width) still show.
+    let boxed = [
+        "id",
+        "lat_deg",
+        "lon_deg",
+        "ground_elev_m",
+        "height_m",
+        "line_name",
+        "survey_source",
+        "notes",
+    ];
+    for (f, e) in errors.iter().filter(|(f, _)| !boxed.contains(f)) {
+        ui.colored_label(Color32::RED, format!("{f} {e}"));
+    }
+    let mut action = None;
+    ui.horizontal(|ui| {
+        let renaming_over = match (&state.editing, &result) {
+            (None, Ok(r)) => records.iter().any(|x| x.id == r.id),
+            _ => false,
+        };
+        let label = if state.editing.is_some() {
+            "Save"
+        } else {
+            "Add"
+        };
+        let save = ui.add_enabled(result.is_ok() && !renaming_over, egui::Button::new(label));
+        if renaming_over {
+            ui.colored_label(Color32::RED, "that id is taken");
+        }
+        if save.clicked()
+            && let Ok(r) = &result
+        {
+            action = Some(EditorAction::Upsert(r.clone()));
+        }
+        if ui.button("New").clicked() {
+            state.form = Form::default();
+            state.editing = None;
+            state.confirm_delete = None;
+        }
+        if let Some(id) = state.editing.clone() {
+            if state.confirm_delete.as_deref() == Some(id.as_str()) {
+                if ui
+                    .button(RichText::new(format!("Really delete {id}")).color(Color32::RED))
+                    .clicked()
+                {
+                    action = Some(EditorAction::Delete(id));
+                    state.confirm_delete = None;
+                }
+            } else if ui.button("Delete").clicked() {
+                state.confirm_delete = Some(id);
+            }
+        }
+    });
+    if let Some((ok, text)) = &state.message {
+        ui.colored_label(
+            if *ok {
+                Color32::LIGHT_GREEN
+            } else {
+                Color32::RED
+            },
+            text,
+        );
+    }
+    action
+}
+
+fn files(ui: &mut egui::Ui, state: &mut EditorState) -> Option<EditorAction> {
+    ui.heading("Import / export");
+    let mut action = None;
+    ui.horizontal(|ui| {
+        let name = ui.label("File");
+        ui.add(egui::TextEdit::singleline(&mut state.io_path).desired_width(170.0))
+            .labelled_by(name.id);
+        if ui.button("Browse...").clicked() {
+            state.browser = Some(FileBrowser::new(&state.io_path));
+        }
+    });
+    ui.horizontal(|ui| {
+        for f in FileFormat::ALL {
+            ui.radio_value(&mut state.io_format, f, f.label());
+        }
+    });
+    ui.horizontal(|ui| {
+        let path = std::path::PathBuf::from(state.io_path.trim());
+        let has_path = !state.io_path.trim().is_empty();
+        if ui
+            .add_enabled(has_path, egui::Button::new("Import"))
+            .clicked()
+        {
+            action = Some(EditorAction::Import(path.clone(), state.io_format));
+        }
+        if ui
+            .add_enabled(has_path, egui::Button::new("Export"))
+            .clicked()
+        {
+            action = Some(EditorAction::Export(path, state.io_format));
+        }
+    });
+    if let Some(browser) = state.browser.as_mut() {
+        match browser.show(ui.ctx()) {
+            Some(Some(path)) => {
+                state.io_path = path.display().to_string();
+                state.browser = None;
+            }
+            Some(None) => state.browser = None,
+            None => {}
+        }
+    }
+    action
+}
+
+/// The database's change log, newest first.
+pub fn history(ui: &mut egui::Ui, changes: &[LandmarkChange]) {
+    ui.heading(format!("Edit history ({} revisions)", changes.len()));
+    egui::ScrollArea::vertical()
+        .id_salt("history")
+        .show(ui, |ui| {
+            egui::Grid::new("history grid")
+                .striped(true)
+                .num_columns(4)
+                .show(ui, |ui| {
+                    for h in ["Revision", "Change", "By", "At (unix s)"] {
+                        ui.strong(h);
+                    }
+                    ui.end_row();
+                    for c in changes.iter().rev().take(2000) {
+                        ui.label(c.revision.to_string());
+                        match &c.change {
+                            LandmarkChangeOp::Upsert { record } => {
+                                ui.label(format!(
+                                    "set {} ({}, {:.6}, {:.6}, {:.1} m)",
+                                    record.id,
+                                    record.tower_type,
+                                    record.lat_deg,
+                                    record.lon_deg,
+                                    record.height_m
+                                ));
+                                ui.label(&record.updated_by);
+                                ui.label(record.updated_at_unix_s.to_string());
+                            }
+                            LandmarkChangeOp::Remove { id } => {
+                                ui.label(format!("removed {id}"));
+                                ui.label("");
+                                ui.label("");
+                            }
+                        }
+                        ui.end_row();
+                    }
+                });
+        });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn form() -> Form {
+        Form {
+            id: "A9".into(),
+            lat: "30.52".into(),
+            lon: "114.36".into(),
+            elev: "25".into(),
+            height: "35".into(),
+            ..Form::default()
+        }
+    }
+
+    #[test]
+    fn a_good_form_makes_a_record_and_bad_fields_are_each_named() {
+        let r = form().record(None).expect("valid");
+        assert_eq!((r.id.as_str(), r.height_m), ("A9", 35.0));
+        let bad = Form {
+            lat: "north".into(),
+            height: String::new(),
+            ..form()
+        };
+        let errors = bad.record(None).expect_err("invalid");
+        assert_eq!(
+            errors,
+            vec![
+                ("lat_deg", "\"north\" is not a number".to_owned()),
+                ("height_m", "is required".to_owned())
+            ]
+        );
+        let tall = Form {
+            height: "900".into(),
+            ..form()
+        };
+        let errors = tall.record(None).expect_err("too tall");
+        assert_eq!(errors[0].0, "height_m", "{errors:?}");
+    }
+
+    #[test]
+    fn rows_filter_and_sort() {
+        let mut state = EditorState::default();
+        let records = vec![
+            LandmarkRecord::new("B2", TowerType::B, 30.0, 114.0, 20.0, 50.0),
+            LandmarkRecord::new("A1", TowerType::A, 30.1, 114.0, 20.0, 30.0),
+            LandmarkRecord::new("A3", TowerType::A, 30.2, 114.0, 20.0, 40.0),
+        ];
+        let ids =
+            |rows: Vec<&LandmarkRecord>| rows.iter().map(|r| r.id.clone()).collect::<Vec<_>>();
+        assert_eq!(ids(rows(&state, &records)), ["A1", "A3", "B2"]);
+        state.sort = (Column::Height, false);
+        assert_eq!(ids(rows(&state, &records)), ["B2", "A3", "A1"]);
+        state.filter = "a".into();
+        assert_eq!(ids(rows(&state, &records)), ["A3", "A1"]);
+    }
+}

@@ -1,0 +1,268 @@
+//! The map: towers by type with their ids, each UAV's estimated track with its
+//! covariance ellipse, the simulator's true track, lines to the towers the
+//! current fix uses, follow mode and a distance measure. Zoom and pan are the
+//! plot's own (scroll, drag, double-click to reset). The background is the
+//! plot's metric grid, or local tiles when the operator gave a tile folder.
+
+use egui::Color32;
+use egui_plot::{
+    Legend, Line, LineStyle, MarkerShape, Plot, PlotBounds, PlotPoint, PlotUi, Points, Polygon,
+    Text,
+};
+use towernav_protocol::{NodeId, TowerType};
+
+use crate::fleet::Fleet;
+use crate::tiles::TileLayer;
+
+/// A tower as the map draws it: east/north about the map datum.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapTower {
+    pub id: String,
+    pub tower_type: TowerType,
+    pub en: [f64; 2],
+}
+
+#[derive(Debug, Default)]
+pub struct MapState {
+    /// Keep the selected UAV in the middle of the map.
+    pub follow: bool,
+    /// Clicks on the map place the measure's ends.
+    pub measuring: bool,
+    pub measure: Vec<[f64; 2]>,
+    /// Half the width of the followed view, metres.
+    follow_half_width_m: Option<f64>,
+}
+
+/// Points of the ellipse `sigmas` standard deviations out, of a 2x2 east/north covariance.
+pub fn covariance_ellipse(center: [f64; 2], cov: [[f64; 2]; 2], sigmas: f64) -> Vec<[f64; 2]> {
+    let (a, b, d) = (cov[0][0], cov[0][1], cov[1][1]);
+    // Eigen-decomposition of the symmetric 2x2 matrix.
+    let mean = 0.5 * (a + d);
+    let spread = (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    let (l1, l2) = ((mean + spread).max(0.0), (mean - spread).max(0.0));
+    let angle = 0.5 * (2.0 * b).atan2(a - d);
+    let (r1, r2) = (sigmas * l1.sqrt(), sigmas * l2.sqrt());
+    let (c, s) = (angle.cos(), angle.sin());
+    (0..=48)
+        .map(|i| {
+            let t = f64::from(i) / 48.0 * std::f64::consts::TAU;
+            let (x, y) = (r1 * t.cos(), r2 * t.sin());
+            [center[0] + c * x - s * y, center[1] + s * x + c * y]
+        })
+        .collect()
+}
+
+fn tower_marker(t: TowerType) -> MarkerShape {
+    match t {
+        TowerType::A => MarkerShape::Up,
+        TowerType::B => MarkerShape::Square,
+        TowerType::C => MarkerShape::Circle,
+        TowerType::D => MarkerShape::Cross,
+    }
+}
+
+/// Distinct colours per UAV, stable across frames.
+pub fn uav_color(index: usize) -> Color32 {
+    const PALETTE: [Color32; 8] = [
+        Color32::from_rgb(80, 200, 120),
+        Color32::from_rgb(90, 160, 255),
+        Color32::from_rgb(255, 170, 60),
+        Color32::from_rgb(230, 90, 200),
+        Color32::from_rgb(60, 220, 220),
+        Color32::from_rgb(240, 230, 80),
+        Color32::from_rgb(255, 110, 110),
+        Color32::from_rgb(170, 140, 255),
+    ];
+    PALETTE[index % PALETTE.len()]
+}
+
+pub fn show(
+    ui: &mut egui::Ui,
+    state: &mut MapState,
+    fleet: &Fleet,
+    towers: &[MapTower],
+    tiles: Option<&mut TileLayer>,
+    selected: Option<&NodeId>,
+    now_s: f64,
+) {
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut state.follow, "Follow")
+            .on_hover_text("keep the selected UAV in the middle");
+        if ui
+            .toggle_value(&mut state.measuring, "Measure")
+            .on_hover_text("click two points on the map")
+            .changed()
+        {
+            state.measure.clear();
+        }
+        if let [a, b] = state.measure[..] {
+            let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+            ui.label(format!("distance {d:.1} m"));
+        }
+    });
+    let followed = selected
+        .filter(|_| state.follow)
+        .and_then(|uav| fleet.uavs.get(uav))
+        .and_then(|v| v.trail.back().copied());
+    let response = Plot::new("map")
+        .data_aspect(1.0)
+        .legend(Legend::default())
+        .x_axis_label("east (m)")
+        .y_axis_label("north (m)")
+        .allow_drag(!state.measuring)
+        .show(ui, |plot| {
+            if let Some(layer) = tiles {
+                layer.draw(plot);
+            }
+            draw_towers(plot, towers);
+            draw_fleet(plot, fleet, towers, selected, now_s);
+            if let Some(center) = followed {
+                let half = *state
+                    .follow_half_width_m
+                    .get_or_insert_with(|| 0.5 * plot.plot_bounds().width().max(200.0));
+                plot.set_plot_bounds(PlotBounds::from_min_max(
+                    [center[0] - half, center[1] - half],
+                    [center[0] + half, center[1] + half],
+                ));
+            } else {
+                state.follow_half_width_m = None;
+            }
+            if !state.measure.is_empty() {
+                plot.line(
+                    Line::new("measure", state.measure.clone())
+                        .color(Color32::WHITE)
+                        .style(LineStyle::dashed_dense()),
+                );
+                plot.points(
+                    Points::new("measure", state.measure.clone())
+                        .color(Color32::WHITE)
+                        .radius(3.0),
+                );
+            }
+            if state.measuring && plot.response().clicked() {
+                plot.pointer_coordinate()
+            } else {
+                None
+            }
+        });
+    if let Some(p) = response.inner {
+        if state.measure.len() == 2 {
+            state.measure.clear();
+        }
+        state.measure.push([p.x, p.y]);
+    }
+}
+
+fn draw_towers(plot: &mut PlotUi<'_>, towers: &[MapTower]) {
+    for t in TowerType::ALL {
+        let pts: Vec<[f64; 2]> = towers
+            .iter()
+            .filter(|m| m.tower_type == t)
+            .map(|m| m.en)
+            .collect();
+        if !pts.is_empty() {
+            plot.points(
+                Points::new(format!("towers {t}"), pts)
+                    .shape(tower_marker(t))
+                    .radius(5.0),
+            );
+        }
+    }
+    for m in towers {
+        plot.text(Text::new(
+            "tower ids",
+            PlotPoint::new(m.en[0], m.en[1] + 12.0),
+            m.id.as_str(),
+        ));
+    }
+}
+
+fn draw_fleet(
+    plot: &mut PlotUi<'_>,
+    fleet: &Fleet,
+    towers: &[MapTower],
+    selected: Option<&NodeId>,
+    now_s: f64,
+) {
+    for (i, (uav, view)) in fleet.uavs.iter().enumerate() {
+        let color = uav_color(i);
+        if !view.truth_trail.is_empty() {
+            plot.line(
+                Line::new(
+                    format!("{uav} truth"),
+                    view.truth_trail.iter().copied().collect::<Vec<_>>(),
+                )
+                .color(color.gamma_multiply(0.6))
+                .style(LineStyle::dashed_loose()),
+            );
+        }
+        let Some(&last) = view.trail.back() else {
+            continue;
+        };
+        let width = if selected == Some(uav) { 2.5 } else { 1.5 };
+        plot.line(
+            Line::new(uav.as_str(), view.trail.iter().copied().collect::<Vec<_>>())
+                .color(color)
+                .width(width),
+        );
+        if let Some(p) = &view.last_pose {
+            let cov = [
+                [p.covariance[0][0], p.covariance[0][1]],
+                [p.covariance[1][0], p.covariance[1][1]],
+            ];
+            plot.polygon(
+                Polygon::new(format!("{uav} 2-sigma"), covariance_ellipse(last, cov, 2.0))
+                    .fill_color(color.gamma_multiply(0.15))
+                    .stroke(egui::Stroke::new(1.0, color)),
+            );
+            for id in &p.towers_used {
+                if let Some(t) = towers.iter().find(|t| &t.id == id) {
+                    plot.line(
+                        Line::new(format!("{uav} sightlines"), vec![last, t.en])
+                            .color(color.gamma_multiply(0.5))
+                            .style(LineStyle::dotted_dense()),
+                    );
+                }
+            }
+        }
+        plot.points(
+            Points::new(uav.as_str(), vec![last])
+                .shape(MarkerShape::Diamond)
+                .radius(7.0)
+                .color(if fleet.is_stale(uav, now_s) {
+                    Color32::GRAY
+                } else {
+                    color
+                }),
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn the_ellipse_of_a_diagonal_covariance_has_its_sigmas_on_the_axes() {
+        let pts = covariance_ellipse([10.0, 20.0], [[9.0, 0.0], [0.0, 4.0]], 2.0);
+        assert!((pts[0][0] - 16.0).abs() < 1e-9 && (pts[0][1] - 20.0).abs() < 1e-9);
+        assert!((pts[12][0] - 10.0).abs() < 1e-9 && (pts[12][1] - 24.0).abs() < 1e-9);
+    }
+
+    proptest! {
+        /// Every point of the 1-sigma ellipse has Mahalanobis distance 1.
+        #[test]
+        fn ellipse_points_are_one_sigma_away(
+            sx in 0.1f64..30.0, sy in 0.1f64..30.0, rho in -0.95f64..0.95,
+        ) {
+            let cov = [[sx * sx, rho * sx * sy], [rho * sx * sy, sy * sy]];
+            let det = cov[0][0] * cov[1][1] - cov[0][1] * cov[1][0];
+            for p in covariance_ellipse([0.0, 0.0], cov, 1.0) {
+                let (x, y) = (p[0], p[1]);
+                let m = (cov[1][1] * x * x - 2.0 * cov[0][1] * x * y + cov[0][0] * y * y) / det;
+                prop_assert!((m - 1.0).abs() < 1e-6, "{}", m);
+            }
+        }
+    }
+}
