@@ -202,7 +202,8 @@ impl GsApp {
         match self.tab {
             Tab::Map => {
                 egui::Panel::right("camera")
-                    .default_size(420.0)
+                    .min_size(520.0)
+                    .default_size(560.0)
                     .show(ui, |ui| self.camera_panel(ui, now_s));
                 egui::CentralPanel::default().show(ui, |ui| {
                     map_view::show(
@@ -280,6 +281,7 @@ impl GsApp {
             return;
         };
         let action = egui::ScrollArea::vertical()
+            .auto_shrink([false, false])
             .show(ui, |ui| {
                 camera_view::show(
                     ui,

@@ -1,6 +1,8 @@
 //! `towernav-gs`: the ground station window.
 
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use clap::Parser;
@@ -45,6 +47,12 @@ struct Cli {
     /// Close the window after this many seconds (screenshots, benchmarks).
     #[arg(long)]
     quit_after_s: Option<f64>,
+    /// Save a PNG of the window here just before quitting (needs --quit-after-s).
+    #[arg(long, requires = "quit_after_s")]
+    screenshot: Option<PathBuf>,
+    /// Repaint continuously and log the frame rate at exit (a benchmark, not for flying).
+    #[arg(long)]
+    continuous: bool,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -91,6 +99,11 @@ fn main() -> anyhow::Result<()> {
     let db_path = cli.db.clone();
     let start = Instant::now();
     let quit_after_s = cli.quit_after_s;
+    let screenshot = cli.screenshot.clone();
+    let continuous = cli.continuous;
+    let shot_done = Arc::new(AtomicBool::new(false));
+    let mut shot_requested = false;
+    let mut frames = FrameStats::default();
     eframe::run_native(
         "towernav ground station",
         eframe::NativeOptions {
@@ -111,17 +124,88 @@ fn main() -> anyhow::Result<()> {
             let mut app = GsApp::new(db, link, options)?;
             Ok(Box::new(FnApp(move |ui: &mut egui::Ui| {
                 let now = start.elapsed().as_secs_f64();
+                let drawn = Instant::now();
                 app.show(ui, now);
-                if quit_after_s.is_some_and(|q| now > q) {
-                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+                frames.add(now, drawn.elapsed().as_secs_f64());
+                let quitting = quit_after_s.is_some_and(|q| now > q);
+                match (&screenshot, quitting) {
+                    (Some(path), true) if !shot_requested => {
+                        shot_requested = true;
+                        let (path, done) = (path.clone(), shot_done.clone());
+                        ui.ctx()
+                            .send_viewport_cmd(egui::ViewportCommand::Screenshot(
+                                egui::ScreenshotCallback::new(move |image| {
+                                    save_png(&path, &image);
+                                    done.store(true, Ordering::Relaxed);
+                                }),
+                            ));
+                    }
+                    (Some(_), true) if !shot_done.load(Ordering::Relaxed) => {}
+                    (_, true) => {
+                        frames.log();
+                        ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+                    }
+                    _ => {}
                 }
-                // Ages tick even when no message arrives.
-                ui.ctx()
-                    .request_repaint_after(std::time::Duration::from_millis(250));
+                if continuous || quitting {
+                    ui.ctx().request_repaint();
+                } else {
+                    // Ages tick even when no message arrives.
+                    ui.ctx()
+                        .request_repaint_after(std::time::Duration::from_millis(250));
+                }
             })))
         }),
     )
     .map_err(|e| anyhow::anyhow!("ground station window: {e}"))
+}
+
+fn save_png(path: &std::path::Path, image: &egui::ColorImage) {
+    let [w, h] = image.size;
+    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+    let saved = image::RgbaImage::from_raw(w as u32, h as u32, rgba)
+        .ok_or_else(|| "screenshot size does not match its pixels".to_owned())
+        .and_then(|img| img.save(path).map_err(|e| e.to_string()));
+    match saved {
+        Ok(()) => tracing::info!(path = %path.display(), width = w, height = h, "screenshot saved"),
+        Err(e) => tracing::error!(path = %path.display(), error = %e, "screenshot not saved"),
+    }
+}
+
+/// Frame intervals and UI build times after the first two seconds (start-up excluded).
+#[derive(Default)]
+struct FrameStats {
+    last_s: Option<f64>,
+    intervals_s: Vec<f64>,
+    build_s: Vec<f64>,
+}
+
+impl FrameStats {
+    fn add(&mut self, now_s: f64, build_s: f64) {
+        if now_s > 2.0 {
+            if let Some(last) = self.last_s {
+                self.intervals_s.push(now_s - last);
+            }
+            self.build_s.push(build_s);
+        }
+        self.last_s = Some(now_s);
+    }
+
+    fn log(&mut self) {
+        if self.intervals_s.is_empty() {
+            return;
+        }
+        let mean = self.intervals_s.iter().sum::<f64>() / self.intervals_s.len() as f64;
+        self.build_s.sort_by(f64::total_cmp);
+        let at = |q: f64| self.build_s[((self.build_s.len() - 1) as f64 * q).round() as usize];
+        tracing::info!(
+            frames = self.intervals_s.len(),
+            fps = format!("{:.1}", 1.0 / mean),
+            ui_build_p50_ms = format!("{:.2}", at(0.5) * 1e3),
+            ui_build_p99_ms = format!("{:.2}", at(0.99) * 1e3),
+            "frame rate"
+        );
+    }
 }
 
 struct FnApp<F>(F);

@@ -1,10 +1,11 @@
-//! `cargo xtask demo | gs | test | train | setup-ort`: the project's two front doors, the ground station, and the detector's training.
+//! `cargo xtask demo | gs | test | train | screenshot | setup-ort`: the project's two front doors, the ground station, and the detector's training.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
 
+mod screenshot;
 mod train;
 use clap::{Parser, Subcommand};
 
@@ -49,6 +50,12 @@ enum Task {
         #[arg(long)]
         continue_run: bool,
     },
+    /// A screenshot of the ground station's real window under Xvfb, beside a demo edge (docs/ground-station.png).
+    Screenshot {
+        /// Seconds of flight before the picture.
+        #[arg(long, default_value_t = 15.0)]
+        seconds: f64,
+    },
     /// Install ONNX Runtime's shared library into .ort/ (from the onnxruntime wheel on PyPI).
     SetupOrt,
 }
@@ -65,6 +72,7 @@ fn main() -> anyhow::Result<()> {
         Task::Demo { speed, seed } => demo(&root, speed, seed),
         Task::Gs => ground_station(&root),
         Task::Test => test(&root),
+        Task::Screenshot { seconds } => screenshot::screenshot(&root, seconds),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
         Task::Train {
             foreground,

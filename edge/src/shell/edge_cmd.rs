@@ -19,7 +19,7 @@ use super::daemon::attitude::{AttitudeLog, AttitudeSource, MavlinkAttitude};
 use super::daemon::config::{AttitudeKind, DetectorKind, EdgeConfig, SourceKind};
 use super::daemon::mavlink_out::MavlinkOut;
 use super::daemon::run::{RunOptions, RunSummary, percentiles, run};
-use super::daemon::source::{FfmpegSource, FrameSource, ImageFolderSource, SimSource};
+use super::daemon::source::{FfmpegSource, FrameSource, ImageFolderSource, SimRender, SimSource};
 use super::daemon::worker::Worker;
 use super::demo_plots;
 use super::landmark_sync::LandmarkSync;
@@ -170,7 +170,14 @@ pub async fn run_edge(
     let source: Box<dyn FrameSource> = match (config.source.kind, &scenario) {
         (SourceKind::Sim, Some(s)) => Box::new(SimSource::new(
             s.clone(),
-            config.detector.kind == DetectorKind::Yolo,
+            match config.detector.kind {
+                DetectorKind::Yolo => SimRender::Detector,
+                // Render just the frames the preview will show.
+                DetectorKind::Oracle if config.output.preview_hz > 0.0 => SimRender::PreviewEvery(
+                    (s.fps / config.output.preview_hz).round().max(1.0) as u64,
+                ),
+                DetectorKind::Oracle => SimRender::Never,
+            },
             config.source.max_frames,
         )),
         (SourceKind::Images, _) => Box::new(ImageFolderSource::open(

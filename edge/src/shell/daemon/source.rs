@@ -52,7 +52,19 @@ pub trait FrameSource: Send {
     fn describe(&self) -> String;
 }
 
-/// The simulator: each frame rendered (when `render`), or the oracle's boxes.
+/// What the simulator renders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SimRender {
+    /// Every frame, for the detector.
+    Detector,
+    /// The oracle's boxes, with one frame in `n` rendered for the operator's preview.
+    PreviewEvery(u64),
+    /// The oracle's boxes only.
+    Never,
+}
+
+/// The simulator: frames rendered for the detector, or the oracle's boxes
+/// (with an occasional rendered frame for the preview).
 pub struct SimSource {
     scenario: Arc<Scenario>,
     frames: Box<dyn Iterator<Item = (FrameTruth, towernav_protocol::DetectionFrame)> + Send>,
@@ -61,12 +73,13 @@ pub struct SimSource {
         towernav_sim::FrameBuffers,
         Conditions,
     )>,
+    mode: SimRender,
     max_frames: u64,
 }
 
 impl SimSource {
-    pub fn new(scenario: Arc<Scenario>, render: bool, max_frames: Option<u64>) -> Self {
-        let render = render.then(|| {
+    pub fn new(scenario: Arc<Scenario>, mode: SimRender, max_frames: Option<u64>) -> Self {
+        let render = (mode != SimRender::Never).then(|| {
             let renderer = scenario.renderer();
             let buffers = renderer.buffers();
             (renderer, buffers, Conditions::default())
@@ -75,6 +88,7 @@ impl SimSource {
             frames: Box::new(scenario.frames_shared()),
             scenario,
             render,
+            mode,
             max_frames: max_frames.unwrap_or(u64::MAX),
         }
     }
@@ -86,14 +100,24 @@ impl FrameSource for SimSource {
         if frame.seq >= self.max_frames {
             return None;
         }
-        let (image, detections) = match &mut self.render {
-            Some((renderer, buffers, conditions)) => {
+        let oracle = match self.mode {
+            SimRender::Detector => None,
+            SimRender::PreviewEvery(_) | SimRender::Never => Some(frame.detections),
+        };
+        let draw = match self.mode {
+            SimRender::Detector => true,
+            SimRender::PreviewEvery(n) => frame.seq % n.max(1) == 0,
+            SimRender::Never => false,
+        };
+        let image = match &mut self.render {
+            Some((renderer, buffers, conditions)) if draw => {
                 self.scenario
                     .render_into(renderer, buffers, &truth, conditions);
-                (Some(buffers.image.clone()), None)
+                Some(buffers.image.clone())
             }
-            None => (None, Some(frame.detections)),
+            _ => None,
         };
+        let detections = oracle;
         Some(Ok(CapturedFrame {
             seq: frame.seq,
             time_s: frame.time_s,
@@ -110,10 +134,10 @@ impl FrameSource for SimSource {
             "simulator ({} frames at {} Hz, {})",
             self.scenario.frame_count(),
             self.scenario.fps,
-            if self.render.is_some() {
-                "rendered"
-            } else {
-                "oracle boxes"
+            match self.mode {
+                SimRender::Detector => "rendered",
+                SimRender::PreviewEvery(_) => "oracle boxes, rendered previews",
+                SimRender::Never => "oracle boxes",
             }
         )
     }
