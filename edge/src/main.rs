@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
 use towernav_edge::detector::PostprocessParams;
-use towernav_edge::shell::daemon::config::EdgeConfig;
+use towernav_edge::shell::daemon::config::{EdgeConfig, ZenohMode};
 use towernav_edge::shell::detector_eval_cmd::DetectorEvalOptions;
 use towernav_edge::shell::edge_cmd::{run_edge, spawn_signal_watch};
 use towernav_edge::shell::yolo::DetectorOptions;
@@ -111,6 +111,9 @@ struct RunArgs {
     /// Zenoh endpoint to listen on (repeatable; ground stations connect here).
     #[arg(long)]
     listen: Vec<String>,
+    /// Zenoh mode: peer (default), or client behind a router given with --connect.
+    #[arg(long, value_enum)]
+    zenoh_mode: Option<ZenohMode>,
     /// Zenoh endpoint to connect to: a peer, or a router (repeatable).
     #[arg(long)]
     connect: Vec<String>,
@@ -196,6 +199,9 @@ impl RunArgs {
         }
         if !self.listen.is_empty() {
             c.zenoh.listen = self.listen.clone();
+        }
+        if let Some(mode) = self.zenoh_mode {
+            c.zenoh.mode = mode;
         }
         if !self.connect.is_empty() {
             c.zenoh.connect = self.connect.clone();

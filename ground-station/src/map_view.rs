@@ -177,6 +177,24 @@ fn draw_towers(plot: &mut PlotUi<'_>, towers: &[MapTower]) {
     }
 }
 
+/// Points drawn per track at most: older points are thinned (every k-th kept),
+/// the newest kept exactly. Long dense polylines cost tessellation and fill
+/// rate, not information, at map scale.
+const MAX_DRAWN_POINTS: usize = 1500;
+
+pub fn thinned(points: &std::collections::VecDeque<[f64; 2]>) -> Vec<[f64; 2]> {
+    let n = points.len();
+    if n <= MAX_DRAWN_POINTS {
+        return points.iter().copied().collect();
+    }
+    let stride = n.div_ceil(MAX_DRAWN_POINTS);
+    let mut out: Vec<[f64; 2]> = points.iter().step_by(stride).copied().collect();
+    if let Some(&last) = points.back() {
+        out.push(last);
+    }
+    out
+}
+
 fn draw_fleet(
     plot: &mut PlotUi<'_>,
     fleet: &Fleet,
@@ -188,12 +206,9 @@ fn draw_fleet(
         let color = uav_color(i);
         if !view.truth_trail.is_empty() {
             plot.line(
-                Line::new(
-                    format!("{uav} truth"),
-                    view.truth_trail.iter().copied().collect::<Vec<_>>(),
-                )
-                .color(color.gamma_multiply(0.6))
-                .style(LineStyle::dashed_loose()),
+                Line::new("true tracks", thinned(&view.truth_trail))
+                    .color(Color32::WHITE.gamma_multiply(0.5))
+                    .width(1.0),
             );
         }
         let Some(&last) = view.trail.back() else {
@@ -201,7 +216,7 @@ fn draw_fleet(
         };
         let width = if selected == Some(uav) { 2.5 } else { 1.5 };
         plot.line(
-            Line::new(uav.as_str(), view.trail.iter().copied().collect::<Vec<_>>())
+            Line::new(uav.as_str(), thinned(&view.trail))
                 .color(color)
                 .width(width),
         );
@@ -218,9 +233,9 @@ fn draw_fleet(
             for id in &p.towers_used {
                 if let Some(t) = towers.iter().find(|t| &t.id == id) {
                     plot.line(
-                        Line::new(format!("{uav} sightlines"), vec![last, t.en])
-                            .color(color.gamma_multiply(0.5))
-                            .style(LineStyle::dotted_dense()),
+                        Line::new("sightlines", vec![last, t.en])
+                            .color(color.gamma_multiply(0.35))
+                            .width(1.0),
                     );
                 }
             }
@@ -242,6 +257,19 @@ fn draw_fleet(
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn long_tracks_are_thinned_keeping_the_newest_point() {
+        let trail: std::collections::VecDeque<[f64; 2]> =
+            (0..5000).map(|i| [f64::from(i), 0.0]).collect();
+        let drawn = thinned(&trail);
+        assert!(drawn.len() <= MAX_DRAWN_POINTS + 1, "{}", drawn.len());
+        assert_eq!(drawn.first(), Some(&[0.0, 0.0]));
+        assert_eq!(drawn.last(), Some(&[4999.0, 0.0]));
+        let short: std::collections::VecDeque<[f64; 2]> =
+            (0..10).map(|i| [f64::from(i), 1.0]).collect();
+        assert_eq!(thinned(&short).len(), 10);
+    }
 
     #[test]
     fn the_ellipse_of_a_diagonal_covariance_has_its_sigmas_on_the_axes() {

@@ -25,6 +25,12 @@ pub fn session_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionCon
     config_for("peer", endpoints)
 }
 
+/// A client of a router: it talks only through the router it connects to
+/// (the mode for edges and ground stations of a fleet behind a router).
+pub fn client_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionConfigError> {
+    config_for("client", endpoints)
+}
+
 /// A router for a fleet: edges and ground stations connect to its `listen`
 /// endpoints; multicast scouting off, as everywhere.
 pub fn router_config(endpoints: &Endpoints) -> Result<zenoh::Config, SessionConfigError> {

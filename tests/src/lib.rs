@@ -1,4 +1,6 @@
-//! Helpers shared by the cross-crate tests in `tests/`.
+//! Helpers shared by the cross-crate tests and benches in `tests/`.
+
+pub mod fleet;
 
 /// A Zenoh endpoint on a loopback port that was free a moment ago.
 pub fn loopback_endpoint() -> String {

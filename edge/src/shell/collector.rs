@@ -64,7 +64,8 @@ impl PoseCollector {
 pub async fn wait_for_peer(session: &Session, timeout: Duration) -> Result<(), ShellError> {
     let deadline = tokio::time::Instant::now() + timeout;
     loop {
-        if session.info().peers_zid().await.next().is_some() {
+        let info = session.info();
+        if info.peers_zid().await.next().is_some() || info.routers_zid().await.next().is_some() {
             // Let subscriptions propagate over the fresh link.
             tokio::time::sleep(Duration::from_millis(300)).await;
             return Ok(());

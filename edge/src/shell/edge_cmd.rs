@@ -24,7 +24,7 @@ use super::daemon::worker::Worker;
 use super::demo_plots;
 use super::landmark_sync::LandmarkSync;
 use super::landmarks_source::load_landmarks;
-use super::node::{EdgeNode, open_session};
+use super::node::{EdgeNode, open_session, open_session_as};
 use super::progress::bar;
 use super::yolo::{DetectorOptions, YoloDetector};
 use crate::detector::PostprocessParams;
@@ -80,7 +80,7 @@ pub async fn run_edge(
         listen: config.zenoh.listen.clone(),
         connect: config.zenoh.connect.clone(),
     };
-    let session = open_session(&endpoints).await?;
+    let session = open_session_as(&endpoints, config.zenoh.mode).await?;
     if !config.zenoh.connect.is_empty()
         && wait_for_peer(&session, Duration::from_secs(5))
             .await

@@ -6,7 +6,7 @@
 //! joins late or misses samples can detect the gap and fetch them.
 
 use std::time::Duration;
-use towernav_protocol::session::{Endpoints, session_config};
+use towernav_protocol::session::{Endpoints, client_config, session_config};
 
 use towernav_protocol::{
     CorrectionAck, DetectionReport, IdCorrection, Keys, Message, NodeId, PoseEstimate, Preview,
@@ -20,9 +20,21 @@ use zenoh::sample::Sample;
 use zenoh_ext::{AdvancedPublisher, AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
 
 use super::ShellError;
+use super::daemon::config::ZenohMode;
 
 pub async fn open_session(endpoints: &Endpoints) -> Result<Session, ShellError> {
-    let config = session_config(endpoints)?;
+    open_session_as(endpoints, ZenohMode::Peer).await
+}
+
+/// A session in the given mode: `Client` talks only through the router it connects to.
+pub async fn open_session_as(
+    endpoints: &Endpoints,
+    mode: ZenohMode,
+) -> Result<Session, ShellError> {
+    let config = match mode {
+        ZenohMode::Peer => session_config(endpoints)?,
+        ZenohMode::Client => client_config(endpoints)?,
+    };
     zenoh::open(config)
         .await
         .map_err(|e| ShellError::zenoh(format!("opening session {endpoints:?}"), e))

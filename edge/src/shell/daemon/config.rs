@@ -37,6 +37,17 @@ pub struct ZenohSection {
     pub listen: Vec<String>,
     /// Endpoints to connect to: other peers, or a router (`tcp/<router>:7447`).
     pub connect: Vec<String>,
+    /// `peer` (the default: edges and ground station find each other directly) or
+    /// `client` (behind a router: everything goes through the `connect` router).
+    pub mode: ZenohMode,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum ZenohMode {
+    #[default]
+    Peer,
+    Client,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -204,6 +215,7 @@ impl Default for ZenohSection {
         Self {
             listen: vec!["tcp/127.0.0.1:7447".into()],
             connect: vec![],
+            mode: ZenohMode::Peer,
         }
     }
 }

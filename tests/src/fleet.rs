@@ -1,0 +1,196 @@
+//! A fleet through one router: `n` simulated edges (oracle detector) connect
+//! to a router-mode Zenoh session, one subscriber behind the same router counts
+//! every pose by UAV and sequence number and measures its age from the sender's
+//! timestamp. Shared by the fleet test and `cargo bench -p towernav-tests --bench fleet`.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, SystemTime};
+
+use towernav_edge::shell::daemon::config::{DetectorKind, EdgeConfig, ZenohMode};
+use towernav_edge::shell::edge_cmd::run_edge;
+use towernav_ground_station::recording::Recorder;
+use towernav_protocol::session::{Endpoints, client_config, router_config};
+use towernav_protocol::{Keys, NodeId, PoseEstimate, Topic, decode};
+
+pub struct FleetOptions {
+    pub edges: usize,
+    pub frames: u64,
+    /// Simulator speed (1 = real time, 30 Hz per edge; 0 = as fast as possible).
+    pub speed: f64,
+    /// JPEG previews per second per edge (0: none).
+    pub preview_hz: f64,
+    /// Record every topic the subscriber sees into this MCAP file.
+    pub record: Option<PathBuf>,
+}
+
+#[derive(Debug, Default)]
+pub struct FleetReport {
+    /// Poses each edge says it published.
+    pub published: BTreeMap<String, u64>,
+    /// Distinct pose sequence numbers the subscriber got, per UAV.
+    pub received: BTreeMap<String, u64>,
+    /// Age of each pose at the subscriber (sender's timestamp to arrival), ms.
+    pub latency_ms: Vec<f64>,
+    pub wall_s: f64,
+}
+
+impl FleetReport {
+    /// UAVs whose received poses fall short of what they published: (uav, published, received).
+    pub fn lost(&self) -> Vec<(String, u64, u64)> {
+        self.published
+            .iter()
+            .filter_map(|(uav, &p)| {
+                let r = self.received.get(uav).copied().unwrap_or(0);
+                (r < p).then(|| (uav.clone(), p, r))
+            })
+            .collect()
+    }
+
+    /// (p50, p99, max) of the latency, ms.
+    pub fn latency(&self) -> (f64, f64, f64) {
+        let mut v = self.latency_ms.clone();
+        if v.is_empty() {
+            return (0.0, 0.0, 0.0);
+        }
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        (at(0.5), at(0.99), v[v.len() - 1])
+    }
+}
+
+fn edge_config(fleet: &str, uav: usize, router: &str, options: &FleetOptions) -> EdgeConfig {
+    let mut c = EdgeConfig {
+        fleet: fleet.into(),
+        uav: format!("uav{uav:02}"),
+        ..EdgeConfig::default()
+    };
+    c.zenoh.listen = vec![];
+    c.zenoh.connect = vec![router.into()];
+    c.zenoh.mode = ZenohMode::Client;
+    c.source.seed = 100 + uav as u64;
+    c.source.max_frames = Some(options.frames);
+    c.source.speed = options.speed;
+    c.detector.kind = DetectorKind::Oracle;
+    c.output.preview_hz = options.preview_hz;
+    c
+}
+
+pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
+    let endpoint = crate::loopback_endpoint();
+    let fleet = "fleet";
+    let err = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    let _router = zenoh::open(router_config(&Endpoints {
+        listen: vec![endpoint.clone()],
+        connect: vec![],
+    })?)
+    .await
+    .map_err(err)?;
+    let subscriber = zenoh::open(client_config(&Endpoints {
+        listen: vec![],
+        connect: vec![endpoint.clone()],
+    })?)
+    .await
+    .map_err(err)?;
+    let keys = Keys::new(NodeId::new(fleet)?);
+    let all = subscriber
+        .declare_subscriber(keys.all_uavs_any_topic())
+        .await
+        .map_err(err)?;
+    let seen: Arc<Mutex<(BTreeMap<String, BTreeSet<u64>>, Vec<f64>)>> = Arc::default();
+    let mut recorder = match &options.record {
+        Some(path) => Some(Recorder::create(path)?),
+        None => None,
+    };
+    let reader = tokio::spawn({
+        let seen = seen.clone();
+        async move {
+            while let Ok(sample) = all.recv_async().await {
+                let key = sample.key_expr().as_str();
+                let payload = sample.payload().to_bytes();
+                if let Some(rec) = recorder.as_mut() {
+                    let now_ns = SystemTime::now()
+                        .duration_since(SystemTime::UNIX_EPOCH)
+                        .map_or(0, |d| d.as_nanos() as u64);
+                    if let Err(e) = rec.write(key, &payload, now_ns) {
+                        eprintln!("recording stopped: {e}");
+                        recorder = None;
+                    }
+                }
+                if !Keys::parse_uav(key).is_ok_and(|k| k.topic == Topic::Pose) {
+                    continue;
+                }
+                let Ok(pose) = decode::<PoseEstimate>(&payload) else {
+                    continue;
+                };
+                let age_ms = sample
+                    .timestamp()
+                    .and_then(|t| {
+                        SystemTime::now()
+                            .duration_since(t.get_time().to_system_time())
+                            .ok()
+                    })
+                    .map(|d| d.as_secs_f64() * 1e3);
+                let mut seen = seen.lock().unwrap_or_else(|e| e.into_inner());
+                seen.0
+                    .entry(pose.uav.as_str().to_owned())
+                    .or_default()
+                    .insert(pose.seq);
+                if let Some(age) = age_ms {
+                    seen.1.push(age);
+                }
+            }
+            if let Some(rec) = recorder {
+                rec.finish().map(|_| ())
+            } else {
+                Ok(())
+            }
+        }
+    });
+    // Let the subscription reach the router before the edges start publishing.
+    tokio::time::sleep(Duration::from_millis(300)).await;
+
+    let start = std::time::Instant::now();
+    let mut tasks = Vec::new();
+    for i in 0..options.edges {
+        let config = edge_config(fleet, i, &endpoint, options);
+        tasks.push(tokio::spawn(async move {
+            let summary = run_edge(&config, None, Arc::new(AtomicBool::new(false))).await?;
+            anyhow::Ok((config.uav, summary.record.poses_published))
+        }));
+    }
+    let mut report = FleetReport::default();
+    for t in tasks {
+        let (uav, published) = t.await??;
+        report.published.insert(uav, published);
+    }
+    report.wall_s = start.elapsed().as_secs_f64();
+    // Wait until every published pose has arrived, or a generous grace period.
+    let expected: u64 = report.published.values().sum();
+    let grace = std::time::Instant::now();
+    loop {
+        let got: u64 = {
+            let seen = seen.lock().unwrap_or_else(|e| e.into_inner());
+            seen.0.values().map(|s| s.len() as u64).sum()
+        };
+        if got >= expected || grace.elapsed() > Duration::from_secs(5) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    drop(subscriber);
+    let recorded = tokio::time::timeout(Duration::from_secs(5), reader).await;
+    if let Ok(Ok(Err(e))) = recorded {
+        anyhow::bail!("recording: {e}");
+    }
+    let seen = seen.lock().unwrap_or_else(|e| e.into_inner());
+    report.received = seen
+        .0
+        .iter()
+        .map(|(uav, seqs)| (uav.clone(), seqs.len() as u64))
+        .collect();
+    report.latency_ms = seen.1.clone();
+    Ok(report)
+}
