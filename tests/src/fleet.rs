@@ -15,6 +15,9 @@ use towernav_ground_station::recording::Recorder;
 use towernav_protocol::session::{Endpoints, client_config, router_config};
 use towernav_protocol::{Keys, NodeId, PoseEstimate, Topic, decode};
 
+/// Pose sequence numbers per UAV, and pose ages in ms, as the subscriber saw them.
+type Seen = (BTreeMap<String, BTreeSet<u64>>, Vec<f64>);
+
 pub struct FleetOptions {
     pub edges: usize,
     pub frames: u64,
@@ -99,7 +102,7 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
         .declare_subscriber(keys.all_uavs_any_topic())
         .await
         .map_err(err)?;
-    let seen: Arc<Mutex<(BTreeMap<String, BTreeSet<u64>>, Vec<f64>)>> = Arc::default();
+    let seen: Arc<Mutex<Seen>> = Arc::default();
     let mut recorder = match &options.record {
         Some(path) => Some(Recorder::create(path)?),
         None => None,
