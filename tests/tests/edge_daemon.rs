@@ -303,3 +303,79 @@ async fn a_corrupt_frame_is_skipped_and_counted_and_the_rest_are_processed() -> 
     assert_eq!(written, 4, "one annotated frame per processed frame");
     Ok(())
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> anyhow::Result<()> {
+    use towernav_landmark_db::{Author, LandmarkDb};
+    let dir = tempfile::tempdir()?;
+    let db_path = dir.path().join("gs.sqlite");
+    let crew = Author {
+        by: "crew".into(),
+        at_unix_s: 0,
+    };
+    let mut db = LandmarkDb::open(&db_path)?;
+    db.upsert_all(&towernav_sim::World::seed_field().landmarks(), &crew)?;
+    let towers_before = db.list()?.len() as u32;
+
+    let endpoint = towernav_tests::loopback_endpoint();
+    let gs = open_session(&Endpoints {
+        listen: vec![endpoint.clone()],
+        connect: vec![],
+    })
+    .await?;
+    let fleet = NodeId::new("lmtest")?;
+    let service = tokio::spawn(towernav_ground_station::landmark_service::serve(
+        gs.clone(),
+        fleet.clone(),
+        db_path.clone(),
+    ));
+    let status_key = Keys::new(fleet).all_uavs(Topic::Status);
+    let statuses = gs
+        .declare_subscriber(status_key)
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let loaded = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let reader = tokio::spawn({
+        let loaded = loaded.clone();
+        async move {
+            while let Ok(sample) = statuses.recv_async().await {
+                if let Ok(s) = decode::<StatusHeartbeat>(&sample.payload().to_bytes()) {
+                    loaded
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .push(s.landmarks_loaded);
+                }
+            }
+        }
+    });
+
+    let mut config = oracle_config("lmtest", &endpoint, 150);
+    config.source.speed = 1.0;
+    config.output.preview_hz = 0.0;
+    config.landmarks.replica = Some(dir.path().join("replica.json"));
+    let edge =
+        tokio::spawn(
+            async move { run_edge(&config, None, Arc::new(AtomicBool::new(false))).await },
+        );
+    // Mid-flight, the survey crew removes two towers far from the flight.
+    tokio::time::sleep(Duration::from_millis(2000)).await;
+    db.remove("D4", &crew)?;
+    db.remove("C4", &crew)?;
+    let summary = edge.await??;
+    service.abort();
+    reader.abort();
+
+    let loaded = loaded.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    assert_eq!(loaded.first(), Some(&towers_before), "status: {loaded:?}");
+    assert_eq!(
+        loaded.last(),
+        Some(&(towers_before - 2)),
+        "status: {loaded:?}"
+    );
+    assert!(
+        summary.record.poses_published > 100,
+        "kept localizing through the change: {} poses",
+        summary.record.poses_published
+    );
+    Ok(())
+}

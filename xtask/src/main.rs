@@ -6,6 +6,7 @@ use std::process::Command;
 use anyhow::{Context, bail};
 
 mod screenshot;
+mod system_packages;
 mod train;
 use clap::{Parser, Subcommand};
 
@@ -243,6 +244,8 @@ fn test(root: &Path) -> anyhow::Result<()> {
         ],
     )?;
     let ort = ensure_onnxruntime(root)?;
+    // The video source's tests run the ffmpeg program.
+    system_packages::ensure_program("ffmpeg", "ffmpeg")?;
     run(
         Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
             .args(["test", "--workspace"])

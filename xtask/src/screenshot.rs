@@ -1,46 +1,18 @@
 //! `cargo xtask screenshot`: the ground station's real window under Xvfb,
 //! connected to a demo edge on loopback, saved as `docs/ground-station.png`.
 //!
-//! Xvfb comes from Debian's `xvfb` package, installed here when missing (as root).
+//! Xvfb comes from Debian's `xvfb` package, installed when missing.
 
 use std::path::Path;
 use std::process::{Command, Stdio};
 
 use anyhow::{Context, bail};
 
+use crate::system_packages::ensure_program;
 use crate::{cargo, run, target_dir};
 
 /// A loopback port of its own, so a running demo (7447) is not disturbed.
 const EDGE_ENDPOINT: &str = "tcp/127.0.0.1:17480";
-
-fn have(program: &str) -> bool {
-    Command::new("sh")
-        .args(["-c", &format!("command -v {program}")])
-        .stdout(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-}
-
-/// Installs a Debian package when its program is missing (root only).
-pub fn ensure_program(program: &str, package: &str) -> anyhow::Result<()> {
-    if have(program) {
-        return Ok(());
-    }
-    if !have("apt-get") {
-        bail!("`{program}` is missing; install the `{package}` package");
-    }
-    let root = Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| o.stdout.starts_with(b"0"));
-    if !root {
-        bail!("`{program}` is missing; install it with `sudo apt-get install {package}`");
-    }
-    run(Command::new("apt-get").args(["update", "-qq"]))?;
-    run(Command::new("apt-get")
-        .args(["install", "-y", "-qq", "--no-install-recommends", package])
-        .env("DEBIAN_FRONTEND", "noninteractive"))
-}
 
 pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     ensure_program("xvfb-run", "xvfb")?;
