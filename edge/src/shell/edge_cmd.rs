@@ -293,6 +293,12 @@ pub async fn run_edge(
                 "latency            frame to publish p50 {p50:.1} ms, p99 {p99:.1} ms; {} frames dropped by the queue, {} failed",
                 summary.dropped, summary.failed
             );
+            println!(
+                "throughput         {:.1} frames/s over {:.1} s; peak RSS {}",
+                summary.record.frames as f64 / summary.record.wall_seconds.max(1e-9),
+                summary.record.wall_seconds,
+                peak_rss_mb().map_or_else(|| "unknown".into(), |mb| format!("{mb:.0} MB"))
+            );
             std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
             let (trajectory, errors) =
                 demo_plots::write(out, &summary.record, &received, scenario.fps)?;
@@ -309,6 +315,14 @@ pub async fn run_edge(
     }
     summary.latency_ms = latency;
     Ok(summary)
+}
+
+/// The process's peak resident set (VmHWM), from /proc on Linux.
+pub fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
 }
 
 /// SIGINT or SIGTERM: stop taking frames; what is queued is finished and published.
