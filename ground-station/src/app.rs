@@ -619,4 +619,39 @@ mod tests {
         harness.run();
         harness.get_by_label("rejected: track 7 ended");
     }
+
+    #[test]
+    fn export_then_import_round_trips_every_format_and_a_bad_file_is_refused() {
+        use crate::landmark_editor::{EditorAction, FileFormat};
+        let dir = tempfile::tempdir().expect("tempdir");
+        for format in FileFormat::ALL {
+            let (_tx, _commands, mut app) = app();
+            let path = dir
+                .path()
+                .join(format!("towers.{}", format.label().replace(' ', "")));
+            app.apply_editor(EditorAction::Export(path.clone(), format));
+            assert_eq!(
+                app.editor.message.as_ref().map(|m| m.0),
+                Some(true),
+                "{format:?}"
+            );
+            app.apply_editor(EditorAction::Delete("A1".into()));
+            assert_eq!(app.records.len(), 1);
+            app.apply_editor(EditorAction::Import(path, format));
+            let message = app.editor.message.clone().expect("message");
+            assert!(
+                message.0 && message.1.contains("imported 2 towers"),
+                "{format:?}: {message:?}"
+            );
+            assert_eq!(app.records.len(), 2, "{format:?}");
+            assert_eq!(app.towers.len(), 2, "the map follows the database");
+        }
+        let (_tx, _commands, mut app) = app();
+        let junk = dir.path().join("junk.csv");
+        std::fs::write(&junk, "id,tower_type\nX1,Q\n").expect("write");
+        app.apply_editor(EditorAction::Import(junk, FileFormat::Csv));
+        let message = app.editor.message.clone().expect("message");
+        assert!(!message.0 && message.1.contains("junk.csv"), "{message:?}");
+        assert_eq!(app.records.len(), 2, "nothing written");
+    }
 }
