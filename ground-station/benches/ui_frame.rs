@@ -24,7 +24,7 @@ fn bench(c: &mut Criterion) {
         ..Default::default()
     };
     let mut seq = 0u64;
-    let mut feed = |seq: u64| {
+    let feed = |seq: u64| {
         for u in 0..UAVS {
             let name = format!("uav{u:02}");
             let lat = 30.52 + 1e-6 * seq as f64 + 1e-4 * u as f64;
