@@ -64,7 +64,7 @@ fn bench(c: &mut Criterion) {
     // Full trails first: the worst case of a long session.
     for s in 0..5000 {
         feed(s);
-        if s % 500 == 0 {
+        if s.is_multiple_of(500) {
             let _ = ctx.run_ui(input(), |ui| app.show(ui, s as f64 / 30.0));
         }
     }
@@ -73,7 +73,7 @@ fn bench(c: &mut Criterion) {
     c.bench_function("ui frame, 10 UAVs at 30 Hz, full trails", |b| {
         b.iter(|| {
             // Two frames of 60 Hz UI per 30 Hz message.
-            if frame % 2 == 0 {
+            if frame.is_multiple_of(2) {
                 feed(seq);
                 seq += 1;
             }
