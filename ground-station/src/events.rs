@@ -143,11 +143,15 @@ mod tests {
     fn own_corrections_are_skipped_and_bad_keys_rejected() {
         assert_eq!(decode_sample(&key(Topic::Correction), b"{}"), None);
         assert!(matches!(
-            decode_sample("towernav/demo/other", b"{}"),
+            decode_sample("not/a/uav/key", b"{}"),
             Some(NetEvent::Rejected { .. })
         ));
         assert!(matches!(
-            decode_alive("towernav/demo/alive/u1", false),
+            decode_alive(
+                &Keys::new(NodeId::new("demo").expect("valid"))
+                    .alive(&NodeId::new("u1").expect("valid")),
+                false
+            ),
             NetEvent::Alive { alive: false, .. }
         ));
     }

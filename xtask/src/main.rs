@@ -248,7 +248,7 @@ fn test(root: &Path) -> anyhow::Result<()> {
     system_packages::ensure_program("ffmpeg", "ffmpeg")?;
     run(
         Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-            .args(["test", "--workspace"])
+            .args(["test", "--workspace", "--no-fail-fast"])
             .env("ORT_DYLIB_PATH", ort)
             .current_dir(root),
     )
