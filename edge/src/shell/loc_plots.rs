@@ -11,13 +11,19 @@ const SEED: RGBColor = RGBColor(214, 39, 40);
 const OURS: RGBColor = RGBColor(31, 119, 180);
 const FILTERED: RGBColor = RGBColor(44, 160, 44);
 
+/// Registers the embedded font with plotters, once per process (annotation calls this per frame).
 pub(crate) fn register_font() -> anyhow::Result<()> {
-    plotters::style::register_font(
-        "sans-serif",
-        FontStyle::Normal,
-        epaint_default_fonts::UBUNTU_LIGHT,
-    )
-    .map_err(|_| anyhow::anyhow!("the embedded plot font did not load"))
+    static REGISTERED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        )
+        .is_ok()
+    });
+    anyhow::ensure!(ok, "the embedded plot font did not load");
+    Ok(())
 }
 
 fn plot_err<E: std::fmt::Debug>(what: &Path) -> impl FnOnce(E) -> anyhow::Error + '_ {
