@@ -1,10 +1,11 @@
-//! `cargo xtask demo | gs | test | train | screenshot | setup-ort`: the project's two front doors, the ground station, and the detector's training.
+//! `cargo xtask demo | gs | test | train | screenshot | bench-edge | setup-ort`: the project's two front doors, the ground station, and the detector's training.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
 
+mod bench_edge;
 mod screenshot;
 mod system_packages;
 mod train;
@@ -51,6 +52,8 @@ enum Task {
         #[arg(long)]
         continue_run: bool,
     },
+    /// The edge daemon end to end on 1280x720 camera frames with the shipped detector: frames/s, latency, peak RSS.
+    BenchEdge,
     /// A screenshot of the ground station's real window under Xvfb, beside a demo edge (docs/ground-station.png).
     Screenshot {
         /// Seconds of flight before the picture.
@@ -73,6 +76,7 @@ fn main() -> anyhow::Result<()> {
         Task::Demo { speed, seed } => demo(&root, speed, seed),
         Task::Gs => ground_station(&root),
         Task::Test => test(&root),
+        Task::BenchEdge => bench_edge::bench_edge(&root),
         Task::Screenshot { seconds } => screenshot::screenshot(&root, seconds),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
         Task::Train {

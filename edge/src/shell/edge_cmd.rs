@@ -309,8 +309,13 @@ pub async fn run_edge(
             );
         }
         _ => println!(
-            "flew {} frames, published {} poses; latency p50 {p50:.1} ms, p99 {p99:.1} ms; {} dropped, {} failed",
-            summary.record.frames, summary.record.poses_published, summary.dropped, summary.failed
+            "flew {} frames, published {} poses; {:.1} frames/s; latency p50 {p50:.1} ms, p99 {p99:.1} ms; {} dropped, {} failed; peak RSS {}",
+            summary.record.frames,
+            summary.record.poses_published,
+            summary.record.frames as f64 / summary.record.wall_seconds.max(1e-9),
+            summary.dropped,
+            summary.failed,
+            peak_rss_mb().map_or_else(|| "unknown".into(), |mb| format!("{mb:.0} MB"))
         ),
     }
     summary.latency_ms = latency;

@@ -20,7 +20,10 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-/// Write `trajectory.csv`, `truth.csv`, `mot/<name>/` and, with `images`, `mot/<name>/img1/*.jpg`.
+/// Write `trajectory.csv`, `truth.csv`, `mot/<name>/` and, with `images`,
+/// `mot/<name>/img1/*.jpg` plus what replaying them through the edge daemon as a
+/// real camera needs: `attitude.csv` (the IMU as an autopilot logs it),
+/// `towers.csv` and `replay.toml` (`towernav-edge run --config replay.toml`).
 pub fn write_flight(
     scenario: &Scenario,
     name: &str,
@@ -68,6 +71,10 @@ pub fn write_flight(
     }
     let renderer = images.then(|| Renderer::new(&scenario.world, scenario.camera, scenario.seed));
     let mut buffers = renderer.as_ref().map(Renderer::buffers);
+    let attitude_path = out.join("attitude.csv");
+    let mut attitude_csv = csv::Writer::from_path(&attitude_path)
+        .with_context(|| format!("creating {}", attitude_path.display()))?;
+    attitude_csv.write_record(["time_s", "roll_deg", "pitch_deg", "heading_deg"])?;
     let bar = progress(scenario.frame_count(), "flight");
     let mut truths = Vec::with_capacity(scenario.frame_count() as usize);
     for (truth, input) in scenario.frames() {
@@ -89,6 +96,12 @@ pub fn write_flight(
         let mut row = vec![truth.seq.to_string()];
         row.extend(values.iter().map(|v| format!("{v:.6}")));
         traj.write_record(&row)?;
+        attitude_csv.write_record([
+            format!("{:.6}", truth.time_s),
+            format!("{:.4}", imu.roll.to_degrees()),
+            format!("{:.4}", imu.pitch.to_degrees()),
+            format!("{:.4}", imu.yaw_from_north().to_degrees().rem_euclid(360.0)),
+        ])?;
         for b in &truth.boxes {
             truth_csv.write_record([
                 truth.seq.to_string(),
@@ -118,6 +131,10 @@ pub fn write_flight(
     bar.finish();
     traj.flush()?;
     truth_csv.flush()?;
+    attitude_csv.flush()?;
+    if images {
+        write_replay_config(scenario, out, &img_dir, &attitude_path)?;
+    }
     let k = &scenario.camera.intrinsics;
     mot::write_sequence(
         &seq_dir,
@@ -127,4 +144,44 @@ pub fn write_flight(
         scenario.fps,
         (k.width, k.height),
     )
+}
+
+/// The towers and an edge-daemon config that replays the rendered frames as a
+/// camera: image folder, attitude log, landmark file, and the takeoff fix.
+fn write_replay_config(
+    scenario: &Scenario,
+    out: &Path,
+    img_dir: &Path,
+    attitude: &Path,
+) -> anyhow::Result<()> {
+    let towers = out.join("towers.csv");
+    let file =
+        std::fs::File::create(&towers).with_context(|| format!("creating {}", towers.display()))?;
+    towernav_landmark_db::export_csv(&scenario.world.landmarks(), file)
+        .with_context(|| format!("writing {}", towers.display()))?;
+    let takeoff = scenario.world.datum.to_geodetic(&scenario.start_in_world());
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let k = &scenario.camera.intrinsics;
+    let hfov_deg = (2.0 * (f64::from(k.width) / (2.0 * k.fx)).atan()).to_degrees();
+    let toml = format!(
+        "# Replays this flight's rendered frames through the edge daemon as a real camera:\n\
+         #   towernav-edge run --config {config}\n\
+         [source]\nkind = \"images\"\npath = {img:?}\nfps = {fps}\nwidth = {w}\nheight = {h}\n\n\
+         [camera]\nhfov_deg = {hfov_deg:.4}\n\n\
+         [attitude]\nkind = \"csv\"\npath = {att:?}\n\n\
+         [landmarks]\nfile = {towers:?}\n\n\
+         [pipeline]\ntakeoff = [{lat:.9}, {lon:.9}, {alt:.3}]\n",
+        config = abs(&out.join("replay.toml")).display(),
+        img = abs(img_dir).display().to_string(),
+        fps = scenario.fps,
+        w = k.width,
+        h = k.height,
+        att = abs(attitude).display().to_string(),
+        towers = abs(&towers).display().to_string(),
+        lat = takeoff.lat_deg,
+        lon = takeoff.lon_deg,
+        alt = takeoff.height_m,
+    );
+    let path = out.join("replay.toml");
+    std::fs::write(&path, toml).with_context(|| format!("writing {}", path.display()))
 }
