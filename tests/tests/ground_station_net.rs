@@ -67,7 +67,6 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         connect: vec![],
     })
     .await?;
-    let edge = EdgeNode::new(session.clone(), fleet.clone(), uav.clone()).await?;
     let dir = tempfile::tempdir()?;
     let mcap = dir.path().join("session.mcap");
     let link = net::spawn(
@@ -82,8 +81,14 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
     link.commands
         .send(NetCommand::StartRecording(mcap.clone()))
         .map_err(|_| anyhow::anyhow!("network thread gone"))?;
+    wait_for(&link.events, Duration::from_secs(5), |e| match e {
+        NetEvent::Notice(n) if n.starts_with("recording to") => Some(()),
+        _ => None,
+    })?;
+    // The edge appears once the recording runs, so its arrival is in the file.
+    let edge = EdgeNode::new(session.clone(), fleet.clone(), uav.clone()).await?;
 
-    // The edge's liveliness token is seen (history: it was declared before we joined).
+    // The edge's liveliness token is seen.
     wait_for(&link.events, Duration::from_secs(10), |e| match e {
         NetEvent::Alive {
             uav: u,
