@@ -94,7 +94,7 @@ fn an_empty_frame_is_an_error_naming_the_frame() {
 /// not cut by the frame edge, less than a quarter hidden) with IoU >= 0.6 and the
 /// right type, on frames of the seed's path it was never trained on.
 #[test]
-#[ignore = "the model shipped today (8 CPU epochs, mAP50 0.45) misses this bar; issue 5 stays open. Run with --ignored."]
+#[ignore = "the shipped model (two CPU training stages, mAP50 0.59 for towers >40 px) misses this bar; issue 5 stays open. Run with --ignored."]
 fn the_shipped_model_finds_the_towers_in_rendered_frames() {
     let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/towers.onnx");
     let mut detector = load(&model).expect("the shipped model loads");
