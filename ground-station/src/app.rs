@@ -546,13 +546,7 @@ mod tests {
             }],
         }))
         .expect("send");
-        let mut jpeg = Vec::new();
-        image::RgbImage::from_pixel(64, 36, image::Rgb([90, 120, 160]))
-            .write_to(
-                &mut std::io::Cursor::new(&mut jpeg),
-                image::ImageFormat::Jpeg,
-            )
-            .expect("jpeg");
+        let jpeg = crate::test_support::jpeg(64, 36, [90, 120, 160]);
         let preview = towernav_protocol::Preview {
             uav: uav.clone(),
             time_s: 0.2,

@@ -4,8 +4,8 @@
 use std::sync::Arc;
 
 use towernav_protocol::{
-    CorrectionAck, DetectionReport, Keys, NodeId, PoseEstimate, Preview, StatusHeartbeat, Topic,
-    TrackReport, TruthPose, decode,
+    CorrectionAck, Keys, NodeId, PoseEstimate, Preview, StatusHeartbeat, Topic, TrackReport,
+    TruthPose, decode,
 };
 
 /// A camera preview with its JPEG already decoded (off the UI thread).
@@ -21,7 +21,6 @@ pub enum NetEvent {
     Pose(PoseEstimate),
     Tracks(TrackReport),
     Status(StatusHeartbeat),
-    Detections(DetectionReport),
     Preview(DecodedPreview),
     Truth(TruthPose),
     Ack(CorrectionAck),
@@ -41,8 +40,8 @@ pub enum NetEvent {
     Failed(String),
 }
 
-/// The event a sample on a per-UAV key stands for. `None` for the ground
-/// station's own outbound traffic (corrections), which it does not draw.
+/// The event a sample on a per-UAV key stands for. `None` for what the app
+/// does not draw (its own corrections, raw detections).
 pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
     let rejected = |error: String| NetEvent::Rejected {
         key: key.to_owned(),
@@ -56,7 +55,6 @@ pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
         Topic::Pose => decode(bytes).map(NetEvent::Pose),
         Topic::Tracks => decode(bytes).map(NetEvent::Tracks),
         Topic::Status => decode(bytes).map(NetEvent::Status),
-        Topic::Detections => decode(bytes).map(NetEvent::Detections),
         Topic::Truth => decode(bytes).map(NetEvent::Truth),
         Topic::CorrectionAck => decode(bytes).map(NetEvent::Ack),
         Topic::Preview => {
@@ -71,7 +69,9 @@ pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
                 Err(e) => rejected(e.to_string()),
             });
         }
-        Topic::Correction => return None,
+        // The ground station's own corrections, and raw boxes (the camera view
+        // draws tracks): recorded, not decoded.
+        Topic::Correction | Topic::Detections => return None,
     };
     Some(event.unwrap_or_else(|e| rejected(e.to_string())))
 }
@@ -105,13 +105,7 @@ mod tests {
 
     #[test]
     fn a_preview_arrives_decoded_and_a_bad_jpeg_is_rejected_with_its_key() {
-        let mut jpeg = Vec::new();
-        image::RgbImage::from_pixel(8, 4, image::Rgb([200, 10, 10]))
-            .write_to(
-                &mut std::io::Cursor::new(&mut jpeg),
-                image::ImageFormat::Jpeg,
-            )
-            .expect("jpeg");
+        let jpeg = crate::test_support::jpeg(8, 4, [200, 10, 10]);
         let mut preview = Preview {
             uav: NodeId::new("u1").expect("valid"),
             time_s: 1.0,

@@ -3,7 +3,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use towernav_geometry::{Datum, Geodetic};
-use towernav_protocol::{DetectionReport, NodeId, PoseEstimate, StatusHeartbeat, TrackReport};
+use towernav_protocol::{NodeId, PoseEstimate, StatusHeartbeat, TrackReport};
 
 use crate::corrections::Corrections;
 use crate::events::DecodedPreview;
@@ -32,7 +32,6 @@ pub struct UavView {
     pub status: Option<StatusHeartbeat>,
     /// The last tracks reports, newest last: the preview is drawn with the one of its frame.
     pub recent_tracks: VecDeque<TrackReport>,
-    pub detections: Option<DetectionReport>,
     pub preview: Option<DecodedPreview>,
     /// The liveliness token: `None` until one was seen either way.
     pub alive: Option<bool>,
@@ -135,10 +134,6 @@ impl Fleet {
             NetEvent::Status(s) => {
                 let uav = s.uav.clone();
                 self.uavs.entry(uav).or_default().status = Some(s);
-            }
-            NetEvent::Detections(d) => {
-                let uav = d.uav.clone();
-                self.uavs.entry(uav).or_default().detections = Some(d);
             }
             NetEvent::Preview(p) => {
                 let uav = p.meta.uav.clone();

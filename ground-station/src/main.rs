@@ -183,6 +183,7 @@ struct FrameStats {
     last_s: Option<f64>,
     intervals_s: Vec<f64>,
     build_s: Vec<f64>,
+    logged: bool,
 }
 
 impl FrameStats {
@@ -196,8 +197,9 @@ impl FrameStats {
         self.last_s = Some(now_s);
     }
 
+    /// Logs once: the frames after the close request are not counted twice.
     fn log(&mut self) {
-        if self.intervals_s.is_empty() {
+        if self.logged || self.intervals_s.is_empty() {
             return;
         }
         let mean = self.intervals_s.iter().sum::<f64>() / self.intervals_s.len() as f64;
@@ -210,6 +212,7 @@ impl FrameStats {
             ui_build_p99_ms = format!("{:.2}", at(0.99) * 1e3),
             "frame rate"
         );
+        self.logged = true;
     }
 }
 

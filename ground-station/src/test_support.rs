@@ -33,6 +33,18 @@ pub fn pose(uav: &str, lat_deg: f64, lon_deg: f64, seq: u64) -> PoseEstimate {
     }
 }
 
+/// A JPEG of one colour, as an edge's preview carries.
+pub fn jpeg(width: u32, height: u32, rgb: [u8; 3]) -> Vec<u8> {
+    let mut jpeg = Vec::new();
+    image::RgbImage::from_pixel(width, height, image::Rgb(rgb))
+        .write_to(
+            &mut std::io::Cursor::new(&mut jpeg),
+            image::ImageFormat::Jpeg,
+        )
+        .expect("jpeg");
+    jpeg
+}
+
 pub fn towers() -> Vec<LandmarkRecord> {
     ["A1", "B1"]
         .iter()

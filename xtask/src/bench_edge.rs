@@ -13,22 +13,11 @@ use std::time::Duration;
 
 use anyhow::Context;
 
-use crate::{cargo, ensure_onnxruntime, run, target_dir};
+use crate::{build_release, ensure_onnxruntime, run, target_dir};
 
 pub fn bench_edge(root: &Path) -> anyhow::Result<()> {
-    cargo(
-        root,
-        &[
-            "build",
-            "--release",
-            "-p",
-            "towernav-edge",
-            "-p",
-            "towernav-sim",
-        ],
-    )?;
+    let bin = build_release(root, &["towernav-edge", "towernav-sim"])?;
     let ort = ensure_onnxruntime(root)?;
-    let bin = target_dir(root).join("release");
     let work = target_dir(root).join("bench-edge");
     let config = work.join("replay.toml");
     if !config.exists() {

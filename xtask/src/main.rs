@@ -142,6 +142,16 @@ fn target_dir(root: &Path) -> PathBuf {
     std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from)
 }
 
+/// Builds these packages' release binaries; returns the folder they are in.
+fn build_release(root: &Path, packages: &[&str]) -> anyhow::Result<PathBuf> {
+    let mut args = vec!["build", "--release"];
+    for p in packages {
+        args.extend(["-p", p]);
+    }
+    cargo(root, &args)?;
+    Ok(target_dir(root).join("release"))
+}
+
 fn cargo(root: &Path, args: &[&str]) -> anyhow::Result<()> {
     run(
         Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
@@ -177,18 +187,7 @@ fn ensure_components() -> anyhow::Result<()> {
 }
 
 fn demo(root: &Path, speed: f64, seed: u64) -> anyhow::Result<()> {
-    cargo(
-        root,
-        &[
-            "build",
-            "--release",
-            "-p",
-            "towernav-edge",
-            "-p",
-            "towernav-sim",
-        ],
-    )?;
-    let bin = target_dir(root).join("release");
+    let bin = build_release(root, &["towernav-edge", "towernav-sim"])?;
     let demo_dir = target_dir(root).join("demo");
     std::fs::create_dir_all(&demo_dir)
         .with_context(|| format!("creating {}", demo_dir.display()))?;
@@ -218,12 +217,9 @@ fn ground_station(root: &Path) -> anyhow::Result<()> {
             towers.display()
         );
     }
-    cargo(
-        root,
-        &["build", "--release", "-p", "towernav-ground-station"],
-    )?;
+    let bin = build_release(root, &["towernav-ground-station"])?;
     let db = demo_dir.join("towers.sqlite");
-    let mut cmd = Command::new(target_dir(root).join("release").join("towernav-gs"));
+    let mut cmd = Command::new(bin.join("towernav-gs"));
     cmd.arg("--db")
         .arg(&db)
         .args(["--connect", "tcp/127.0.0.1:7447"]);

@@ -9,27 +9,17 @@ use std::process::{Command, Stdio};
 use anyhow::{Context, bail};
 
 use crate::system_packages::ensure_program;
-use crate::{cargo, run, target_dir};
+use crate::{build_release, run, target_dir};
 
 /// A loopback port of its own, so a running demo (7447) is not disturbed.
 const EDGE_ENDPOINT: &str = "tcp/127.0.0.1:17480";
 
 pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     ensure_program("xvfb-run", "xvfb")?;
-    cargo(
+    let bin = build_release(
         root,
-        &[
-            "build",
-            "--release",
-            "-p",
-            "towernav-edge",
-            "-p",
-            "towernav-sim",
-            "-p",
-            "towernav-ground-station",
-        ],
+        &["towernav-edge", "towernav-sim", "towernav-ground-station"],
     )?;
-    let bin = target_dir(root).join("release");
     let work = target_dir(root).join("screenshot");
     std::fs::create_dir_all(&work).with_context(|| format!("creating {}", work.display()))?;
     let towers = work.join("towers.csv");

@@ -17,7 +17,7 @@ use std::process::{Command, Stdio};
 
 use anyhow::{Context, bail};
 
-use crate::{cargo, run, target_dir};
+use crate::{build_release, run, target_dir};
 
 pub struct TrainOptions {
     pub foreground: bool,
@@ -44,21 +44,19 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     let python = ensure_venv(root)?;
     let dataset = work.join("dataset");
     if !dataset.join("data.yaml").exists() {
-        cargo(root, &["build", "--release", "-p", "towernav-sim"])?;
-        run(
-            Command::new(target_dir(root).join("release").join("towernav-sim"))
-                .arg("dataset")
-                .arg("--out")
-                .arg(&dataset)
-                .args([
-                    "--worlds",
-                    &options.worlds.to_string(),
-                    "--frames-per-world",
-                    &options.frames_per_world.to_string(),
-                    "--seed",
-                    "0",
-                ]),
-        )?;
+        let bin = build_release(root, &["towernav-sim"])?;
+        run(Command::new(bin.join("towernav-sim"))
+            .arg("dataset")
+            .arg("--out")
+            .arg(&dataset)
+            .args([
+                "--worlds",
+                &options.worlds.to_string(),
+                "--frames-per-world",
+                &options.frames_per_world.to_string(),
+                "--seed",
+                "0",
+            ]))?;
     }
     let init = if options.continue_run {
         Some(archive_finished_run(&work, &run_dir)?)
