@@ -1,8 +1,10 @@
 //! The shipped tower detector on one 1280x720 rendered frame, pre- and
 //! post-processing included, on ONNX Runtime's CPU provider with 2 threads
-//! (this project's target machine). Needs the ONNX Runtime library
-//! (`cargo xtask setup-ort`) and `models/towers.onnx`; says so and skips
-//! the model runs when either is missing.
+//! (this project's target machine): the detector alone, and with the
+//! tower-type classifier on each box (what the edge runs). Needs the ONNX
+//! Runtime library (`cargo xtask setup-ort`) and `models/towers.onnx`
+//! (`models/tower-types.onnx` for the second); says so and skips the model
+//! runs when one is missing.
 
 use std::path::PathBuf;
 
@@ -36,19 +38,23 @@ fn detector(c: &mut Criterion) {
         threads,
         ..DetectorOptions::default()
     };
-    match YoloDetector::load(&model, &options) {
-        Ok(mut detector) => {
-            let input = format!(
-                "detect_1280x720_{}x{}_{}threads",
-                detector.info().input_width,
-                detector.info().input_height,
-                threads
-            );
-            c.bench_function(&input, |b| {
-                b.iter(|| detector.detect(&frame, 0).map(|d| d.len()))
-            });
+    let types = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/tower-types.onnx");
+    for (suffix, type_model) in [("", None), ("_with_types", Some(types.as_path()))] {
+        match YoloDetector::load_with_types(&model, type_model, &options) {
+            Ok(mut detector) => {
+                let boxes = detector.detect(&frame, 0).map_or(0, |d| d.len());
+                let input = format!(
+                    "detect_1280x720_{}x{}_{}threads{suffix}_{boxes}boxes",
+                    detector.info().input_width,
+                    detector.info().input_height,
+                    threads
+                );
+                c.bench_function(&input, |b| {
+                    b.iter(|| detector.detect(&frame, 0).map(|d| d.len()))
+                });
+            }
+            Err(e) => eprintln!("skipping the model benchmark{suffix}: {e}"),
         }
-        Err(e) => eprintln!("skipping the model benchmark: {e}"),
     }
 }
 

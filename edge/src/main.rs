@@ -73,6 +73,12 @@ struct DetectorArgs {
     /// YOLO model (Ultralytics ONNX export, classes A-D).
     #[arg(long, default_value = "models/towers.onnx")]
     model: PathBuf,
+    /// Tower-type classifier run on each box's full-resolution crop.
+    #[arg(long, default_value = "models/tower-types.onnx")]
+    type_model: PathBuf,
+    /// Keep the detector's own types (no type classifier).
+    #[arg(long)]
+    no_type_model: bool,
     /// ONNX Runtime threads for inference.
     #[arg(long, default_value_t = 2)]
     threads: usize,
@@ -85,6 +91,10 @@ struct DetectorArgs {
 }
 
 impl DetectorArgs {
+    fn type_model(&self) -> Option<&std::path::Path> {
+        (!self.no_type_model).then_some(self.type_model.as_path())
+    }
+
     fn options(&self) -> DetectorOptions {
         DetectorOptions {
             threads: self.threads,
@@ -163,6 +173,12 @@ struct RunArgs {
     /// YOLO model (Ultralytics ONNX export, classes A-D).
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Tower-type classifier run on each box's full-resolution crop.
+    #[arg(long)]
+    type_model: Option<PathBuf>,
+    /// Keep the detector's own types (no type classifier).
+    #[arg(long)]
+    no_type_model: bool,
     /// ONNX Runtime threads.
     #[arg(long)]
     threads: Option<usize>,
@@ -251,6 +267,13 @@ impl RunArgs {
         if let Some(v) = &self.model {
             c.detector.model = v.clone();
         }
+        if let Some(v) = &self.type_model {
+            c.detector.type_model = v.clone();
+            c.detector.classify_types = true;
+        }
+        if self.no_type_model {
+            c.detector.classify_types = false;
+        }
         if let Some(v) = self.threads {
             c.detector.threads = v;
         }
@@ -308,6 +331,7 @@ fn main() -> anyhow::Result<()> {
         detector_options.post.min_score = 0.001;
         return towernav_edge::shell::detector_eval_cmd::write_all(
             &detector.model,
+            detector.type_model(),
             &detector_options,
             &options,
             out,

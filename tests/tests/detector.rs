@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use image::{Rgb, RgbImage};
 use towernav_edge::detector::Layout;
+use towernav_edge::shell::type_classifier::TypeClassifier;
 use towernav_edge::shell::yolo::{DetectorOptions, YoloDetector};
 use towernav_geometry::PixelBox;
 use towernav_protocol::TowerType;
@@ -78,6 +79,72 @@ fn wrong_models_are_refused_at_load_saying_why() {
         .err()
         .expect("refused");
     assert!(missing.contains("cannot read"), "{missing}");
+}
+
+#[test]
+fn the_type_classifier_names_each_box_from_its_full_resolution_crop() {
+    let options = DetectorOptions::default();
+    let mut detector = YoloDetector::load_with_types(
+        &fixture("fake-v8-towers.onnx"),
+        Some(&fixture("fake-types.onnx")),
+        &options,
+    )
+    .expect("loads");
+    assert_eq!(
+        detector.info().type_model.as_deref(),
+        Some(fixture("fake-types.onnx").as_path())
+    );
+    // The stand-in detector calls its box a B (score 0.9 x mean brightness);
+    // the stand-in classifier reads the crop's colour: blue is a D.
+    let blue = RgbImage::from_pixel(128, 64, Rgb([0, 0, 255]));
+    let dets = detector.detect(&blue, 0).expect("runs");
+    assert_eq!(dets.len(), 1, "{dets:?}");
+    assert_eq!(dets[0].tower_type, TowerType::D);
+    assert!((dets[0].score - 0.3).abs() < 1e-3, "{}", dets[0].score);
+    // Only the crop counts: the same box painted red on the blue frame (the
+    // same brightness, so the same box) is a B.
+    let b = dets[0].bbox;
+    let mut frame = blue.clone();
+    for (x, y, p) in frame.enumerate_pixels_mut() {
+        let (x, y) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+        if (b.left - 4.0..b.right + 4.0).contains(&x) && (b.top - 4.0..b.bottom + 4.0).contains(&y)
+        {
+            *p = Rgb([255, 0, 0]);
+        }
+    }
+    let dets = detector.detect(&frame, 1).expect("runs");
+    assert_eq!(dets.len(), 1, "{dets:?}");
+    assert!(dets[0].bbox.iou(&b) > 0.99, "{:?}", dets[0].bbox);
+    assert_eq!(dets[0].tower_type, TowerType::B);
+}
+
+#[test]
+fn wrong_type_classifiers_are_refused_at_load_saying_why() {
+    let load_types = |name: &str| {
+        TypeClassifier::load(&fixture(name), 1, false)
+            .err()
+            .map(|e| e.to_string())
+            .expect("refused")
+    };
+    let dynamic = load_types("fake-types-dynamic.onnx");
+    assert!(
+        dynamic.contains("fake-types-dynamic.onnx") && dynamic.contains("S fixed"),
+        "{dynamic}"
+    );
+    let detector = load_types("fake-v8-towers.onnx");
+    assert!(detector.contains("expected square crops"), "{detector}");
+    let missing = load_types("missing-types.onnx");
+    assert!(missing.contains("cannot read"), "{missing}");
+    // The detector refuses to start with a classifier it cannot use.
+    let err = YoloDetector::load_with_types(
+        &fixture("fake-v8-towers.onnx"),
+        Some(&fixture("fake-types-dynamic.onnx")),
+        &DetectorOptions::default(),
+    )
+    .err()
+    .expect("refused")
+    .to_string();
+    assert!(err.contains("fake-types-dynamic.onnx"), "{err}");
 }
 
 #[test]

@@ -293,6 +293,7 @@ async fn a_corrupt_frame_is_skipped_and_counted_and_the_rest_are_processed() -> 
     c.attitude.path = Some(dir.path().join("att.csv"));
     c.detector.model =
         std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/fake-v8-towers.onnx");
+    c.detector.classify_types = false;
     c.landmarks.file = Some(towers);
     c.pipeline.takeoff = Some([world.datum.origin.lat_deg, world.datum.origin.lon_deg, 30.0]);
     c.output.annotated = Some(dir.path().join("annotated"));

@@ -6,7 +6,9 @@
 //!    `target/train/dataset` unless it is there;
 //! 3. runs `training/train.py`, detached, logging to `target/train/train.log`:
 //!    it trains from scratch within a wall-clock budget, resumes from its last
-//!    checkpoint when run again after an interruption, exports ONNX and evaluates.
+//!    checkpoint when run again after an interruption, exports ONNX and evaluates;
+//! 4. then `training/train_types.py`: the tower-type classifier the edge runs
+//!    on each box's full-resolution crop (about 25 minutes), into `target/train/types`.
 //!
 //! `--foreground` waits for it; `--ship` copies the exported model into
 //! `models/` once a run has finished.
@@ -32,7 +34,7 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     let work = target_dir(root).join("train");
     let run_dir = work.join("run");
     if options.ship {
-        return ship(root, &run_dir);
+        return ship(root, &run_dir, &work.join("types"));
     }
     let pid_file = work.join("train.pid");
     if let Some(pid) = running(&pid_file) {
@@ -63,22 +65,25 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     } else {
         None
     };
-    // Lowest CPU priority, and OpenMP threads that sleep instead of spinning:
-    // the run soaks up idle cores without slowing a build beside it.
+    // The detector, then the tower-type classifier on its dataset's crops (a
+    // finished classifier only re-exports). Lowest CPU priority, and OpenMP
+    // threads that sleep instead of spinning: the run soaks up idle cores
+    // without slowing a build beside it.
+    let types_dir = work.join("types");
     let mut cmd = Command::new("nice");
-    cmd.args(["-n", "19"])
+    cmd.args(["-n", "19", "sh", "-c"])
+        .arg(r#""$1" "$2" --data "$3" --out "$4" --hours "$5" ${6:+--init "$6"} && "$1" "$7" --data "$3" --out "$8""#)
+        .arg("sh")
         .arg(&python)
-        .env("OMP_WAIT_POLICY", "PASSIVE")
         .arg(root.join("training").join("train.py"))
-        .arg("--data")
         .arg(&dataset)
-        .arg("--out")
         .arg(&run_dir)
-        .args(["--hours", &options.hours.to_string()])
+        .arg(options.hours.to_string())
+        .arg(init.as_deref().unwrap_or(Path::new("")))
+        .arg(root.join("training").join("train_types.py"))
+        .arg(&types_dir)
+        .env("OMP_WAIT_POLICY", "PASSIVE")
         .current_dir(root);
-    if let Some(init) = &init {
-        cmd.arg("--init").arg(init);
-    }
     if options.foreground {
         return run(&mut cmd);
     }
@@ -160,8 +165,8 @@ fn ensure_venv(root: &Path) -> anyhow::Result<PathBuf> {
     Ok(python)
 }
 
-/// Copy the finished run's model and numbers into `models/`.
-fn ship(root: &Path, run_dir: &Path) -> anyhow::Result<()> {
+/// Copy the finished run's models and numbers into `models/`.
+fn ship(root: &Path, run_dir: &Path, types_dir: &Path) -> anyhow::Result<()> {
     let onnx = run_dir.join("towers.onnx");
     let summary = run_dir.join("summary.json");
     if !summary.exists() || !onnx.exists() {
@@ -182,10 +187,22 @@ fn ship(root: &Path, run_dir: &Path) -> anyhow::Result<()> {
     std::fs::copy(&onnx, models.join("towers.onnx"))?;
     std::fs::copy(&summary, models.join("towers.training.json"))?;
     eprintln!(
-        "xtask: shipped {} ({size} bytes) and its training summary into {}; \
-         update models/README.md with `towernav-edge eval-detector`'s numbers",
+        "xtask: shipped {} ({size} bytes) and its training summary into {}",
         onnx.display(),
         models.display()
     );
+    let types = types_dir.join("tower-types.onnx");
+    let types_summary = types_dir.join("summary.json");
+    if types.exists() && types_summary.exists() {
+        std::fs::copy(&types, models.join("tower-types.onnx"))?;
+        std::fs::copy(&types_summary, models.join("tower-types.training.json"))?;
+        eprintln!("xtask: shipped {} too", types.display());
+    } else {
+        eprintln!(
+            "xtask: no finished type classifier in {} (models/tower-types.onnx left as it is)",
+            types_dir.display()
+        );
+    }
+    eprintln!("xtask: update models/README.md with `towernav-edge eval-detector`'s numbers");
     Ok(())
 }

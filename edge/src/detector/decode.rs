@@ -40,12 +40,43 @@ pub struct RawDetection {
     pub score: f32,
 }
 
+/// What a candidate's score measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ScoreMode {
+    /// The best class's score: how sure the model is of that tower type.
+    #[default]
+    BestClass,
+    /// The class scores summed (at most 1): how sure it is of a tower at all,
+    /// whatever the type. For a second stage that names the type itself: a
+    /// tower the detector splits between two look-alike types still ranks high.
+    AnyType,
+}
+
+impl ScoreMode {
+    fn pick(self, scores: impl Iterator<Item = f32>) -> (usize, f32) {
+        match self {
+            Self::BestClass => best_class(scores),
+            Self::AnyType => {
+                let (mut sum, mut best) = (0.0, (0, f32::NEG_INFINITY));
+                for (i, s) in scores.enumerate() {
+                    sum += s.max(0.0);
+                    if s > best.1 {
+                        best = (i, s);
+                    }
+                }
+                (best.0, sum.min(1.0))
+            }
+        }
+    }
+}
+
 /// Candidates above `min_score` from a raw output (row-major `data` of `shape`).
 pub fn decode(
     data: &[f32],
     shape: &[usize],
     classes: usize,
     min_score: f32,
+    mode: ScoreMode,
 ) -> Result<Vec<RawDetection>, LayoutError> {
     let kind = layout(shape, classes)?;
     let mut out = Vec::new();
@@ -65,7 +96,7 @@ pub fn decode(
                 if objectness < min_score {
                     continue;
                 }
-                let (class, best) = best_class(row[5..].iter().copied());
+                let (class, best) = mode.pick(row[5..].iter().copied());
                 let score = objectness * best;
                 if score >= min_score {
                     out.push(RawDetection {
@@ -80,7 +111,7 @@ pub fn decode(
             let n = shape[2];
             let at = |r: usize, i: usize| data[r * n + i];
             for i in 0..n {
-                let (class, score) = best_class((0..classes).map(|c| at(4 + c, i)));
+                let (class, score) = mode.pick((0..classes).map(|c| at(4 + c, i)));
                 if score >= min_score {
                     out.push(RawDetection {
                         bbox: cxcywh(at(0, i), at(1, i), at(2, i), at(3, i)),
@@ -129,7 +160,7 @@ mod tests {
             100.0, 200.0, 20.0, 80.0, 0.9, 0.1, 0.8, 0.05, 0.05, //
             300.0, 200.0, 20.0, 80.0, 0.2, 0.9, 0.0, 0.0, 0.0,
         ];
-        let dets = decode(&data, &[1, 2, 9], 4, 0.25).expect("v5");
+        let dets = decode(&data, &[1, 2, 9], 4, 0.25, ScoreMode::BestClass).expect("v5");
         assert_eq!(dets.len(), 1, "0.2 x 0.9 is under the threshold");
         assert_eq!(dets[0].class, 1);
         assert!((dets[0].score - 0.72).abs() < 1e-6);
@@ -149,9 +180,28 @@ mod tests {
             0.9, 0.1, 0.0, // C
             0.0, 0.2, 0.0, // D
         ];
-        let dets = decode(&data, &[1, 8, 3], 4, 0.25).expect("v8");
+        let dets = decode(&data, &[1, 8, 3], 4, 0.25, ScoreMode::BestClass).expect("v8");
         assert_eq!(dets.iter().map(|d| d.class).collect::<Vec<_>>(), [2, 1]);
         assert_eq!(dets[1].bbox.center_x(), 500.0);
+    }
+
+    #[test]
+    fn any_type_scores_a_tower_split_between_types_by_the_sum() {
+        // One candidate the model splits between C (0.2) and D (0.15).
+        let data = [
+            100.0, 200.0, 20.0, 80.0, // box
+            0.0, 0.0, 0.2, 0.15, // A..D
+        ];
+        assert!(
+            decode(&data, &[1, 8, 1], 4, 0.25, ScoreMode::BestClass)
+                .expect("v8")
+                .is_empty(),
+            "no one type reaches 0.25"
+        );
+        let dets = decode(&data, &[1, 8, 1], 4, 0.25, ScoreMode::AnyType).expect("v8");
+        assert_eq!(dets.len(), 1);
+        assert_eq!(dets[0].class, 2);
+        assert!((dets[0].score - 0.35).abs() < 1e-6);
     }
 
     #[test]

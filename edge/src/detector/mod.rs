@@ -1,14 +1,16 @@
 //! The detector's pure parts: letterbox pre-processing, decoding of
-//! Ultralytics YOLO outputs, class names, and the mAP evaluator. Running the
+//! Ultralytics YOLO outputs, class names, the mAP evaluator and its confusion matrix. Running the
 //! model (ONNX Runtime) is the shell's.
 
 pub mod classes;
+pub mod confusion;
 pub mod decode;
 pub mod letterbox;
 pub mod map_eval;
 pub mod postprocess;
+pub mod type_stage;
 
 pub use classes::{ClassError, ClassMap};
-pub use decode::{Layout, LayoutError, RawDetection, decode, layout, nms};
+pub use decode::{Layout, LayoutError, RawDetection, ScoreMode, decode, layout, nms};
 pub use letterbox::{Letterbox, PreprocessError, Preprocessor};
 pub use postprocess::{PostprocessParams, postprocess};

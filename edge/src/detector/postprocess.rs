@@ -4,7 +4,7 @@ use towernav_geometry::PixelBox;
 use towernav_protocol::Detection;
 
 use super::classes::ClassMap;
-use super::decode::{LayoutError, decode, nms};
+use super::decode::{LayoutError, ScoreMode, decode, nms};
 use super::letterbox::Letterbox;
 
 /// Score and overlap thresholds.
@@ -18,6 +18,8 @@ pub struct PostprocessParams {
     pub min_height_px: f64,
     /// At most this many boxes, best first (Ultralytics' `max_det`).
     pub max_detections: usize,
+    /// Best-class score, or any-type score when a second stage names types.
+    pub score: ScoreMode,
 }
 
 impl Default for PostprocessParams {
@@ -27,6 +29,7 @@ impl Default for PostprocessParams {
             nms_iou: 0.5,
             min_height_px: 4.0,
             max_detections: 300,
+            score: ScoreMode::BestClass,
         }
     }
 }
@@ -40,7 +43,7 @@ pub fn postprocess(
     frame_size: (u32, u32),
     params: &PostprocessParams,
 ) -> Result<Vec<Detection>, LayoutError> {
-    let raw = decode(output, shape, classes.len(), params.min_score)?;
+    let raw = decode(output, shape, classes.len(), params.min_score, params.score)?;
     let (w, h) = (f64::from(frame_size.0), f64::from(frame_size.1));
     Ok(nms(raw, params.nms_iou)
         .into_iter()

@@ -12,6 +12,7 @@ use serde::Serialize;
 use towernav_protocol::TowerType;
 use towernav_sim::Scenario;
 
+use crate::detector::confusion::ConfusionMatrix;
 use crate::detector::map_eval::{
     HEIGHT_BANDS, Labelled, MapAccumulator, MapMetrics, Scored, restrict_to_height,
 };
@@ -35,10 +36,20 @@ pub const TARGET_MIN_HEIGHT_PX: f64 = 40.0;
 #[derive(Debug, Clone, Serialize)]
 pub struct DetectorEval {
     pub model: String,
+    /// The type classifier, when one named the boxes' types.
+    pub type_model: Option<String>,
     pub input: (u32, u32),
     pub images: usize,
     pub all: MetricsJson,
     pub taller_than_40px: MetricsJson,
+    /// The same towers with every type collapsed into one: how well boxes are
+    /// found, whatever type they were given.
+    pub taller_than_40px_any_type: MetricsJson,
+    /// Towers taller than 40 px: rows labelled A..D then background, columns
+    /// detected A..D then missed (score >= `recall_score`, IoU >= 0.5).
+    pub confusion_taller_than_40px: Vec<Vec<usize>>,
+    /// Of those towers found at all, the share given the right type.
+    pub type_accuracy_of_found: f64,
     /// Wall time per frame of `detect` (pre-processing, inference, post-processing), ms.
     pub latency_ms_p50: f64,
     pub latency_ms_p99: f64,
@@ -92,13 +103,35 @@ fn band_names() -> Vec<String> {
 /// Run `model` over the held-out worlds and score it.
 pub fn evaluate(
     model: &Path,
+    type_model: Option<&Path>,
     detector_options: &DetectorOptions,
     options: &DetectorEvalOptions,
 ) -> anyhow::Result<(DetectorEval, MapMetrics, MapMetrics)> {
-    let mut detector = YoloDetector::load(model, detector_options)?;
+    let report = evaluate_report(model, type_model, detector_options, options)?;
+    Ok((report.eval, report.all, report.tall))
+}
+
+/// Everything `write_all` prints.
+struct Report {
+    eval: DetectorEval,
+    all: MapMetrics,
+    tall: MapMetrics,
+    tall_any_type: MapMetrics,
+    confusion: ConfusionMatrix,
+}
+
+fn evaluate_report(
+    model: &Path,
+    type_model: Option<&Path>,
+    detector_options: &DetectorOptions,
+    options: &DetectorEvalOptions,
+) -> anyhow::Result<Report> {
+    let mut detector = YoloDetector::load_with_types(model, type_model, detector_options)?;
     let classes = TowerType::ALL.len();
     let mut all = MapAccumulator::new(classes, options.recall_score);
     let mut tall = MapAccumulator::new(classes, options.recall_score);
+    let mut tall_any_type = MapAccumulator::new(1, options.recall_score);
+    let mut confusion = ConfusionMatrix::new(classes, options.recall_score, 0.5);
     let mut latencies = Vec::new();
     let progress = bar(options.worlds * options.frames_per_world, "eval-detector");
     for w in 0..options.worlds {
@@ -138,6 +171,9 @@ pub fn evaluate(
             all.add_image(&labels, &scored);
             let (labels, scored) = restrict_to_height(&labels, &scored, TARGET_MIN_HEIGHT_PX);
             tall.add_image(&labels, &scored);
+            confusion.add_image(&labels, &scored);
+            let (labels, scored) = one_type(&labels, &scored);
+            tall_any_type.add_image(&labels, &scored);
             progress.inc(1);
         }
     }
@@ -149,19 +185,37 @@ pub fn evaluate(
             .copied()
             .unwrap_or(f64::NAN)
     };
-    let (all, tall) = (all.finish(), tall.finish());
+    let (all, tall, tall_any_type) = (all.finish(), tall.finish(), tall_any_type.finish());
     let info = detector.info();
     let eval = DetectorEval {
         model: model.display().to_string(),
+        type_model: type_model.map(|p| p.display().to_string()),
         input: (info.input_width, info.input_height),
         images: latencies.len(),
         all: MetricsJson::from(&all),
         taller_than_40px: MetricsJson::from(&tall),
+        taller_than_40px_any_type: MetricsJson::from(&tall_any_type),
+        confusion_taller_than_40px: confusion.rows().to_vec(),
+        type_accuracy_of_found: confusion.type_accuracy_of_found(),
         latency_ms_p50: at(0.5),
         latency_ms_p99: at(0.99),
         latency_ms_mean: latencies.iter().sum::<f64>() / latencies.len().max(1) as f64,
     };
-    Ok((eval, all, tall))
+    Ok(Report {
+        eval,
+        all,
+        tall,
+        tall_any_type,
+        confusion,
+    })
+}
+
+/// Labels and boxes with their types erased, for the class-agnostic score.
+fn one_type(labels: &[Labelled], dets: &[Scored]) -> (Vec<Labelled>, Vec<Scored>) {
+    (
+        labels.iter().map(|l| Labelled { class: 0, ..*l }).collect(),
+        dets.iter().map(|d| Scored { class: 0, ..*d }).collect(),
+    )
 }
 
 /// Table 1: one row per class and the overall row.
@@ -185,6 +239,22 @@ pub fn table(m: &MapMetrics) -> Table {
     table
 }
 
+/// Rows: labelled type (and background); columns: detected type (and missed).
+pub fn confusion_table(m: &ConfusionMatrix) -> Table {
+    let names: Vec<String> = TowerType::ALL.iter().map(|t| t.to_string()).collect();
+    let mut table = Table::new();
+    let mut header = vec!["labelled \\ detected".to_string()];
+    header.extend(names.iter().cloned());
+    header.push("missed".into());
+    table.set_header(header);
+    for (i, row) in m.rows().iter().enumerate() {
+        let mut cells = vec![names.get(i).cloned().unwrap_or_else(|| "background".into())];
+        cells.extend(row.iter().map(|n| n.to_string()));
+        table.add_row(cells);
+    }
+    table
+}
+
 pub fn band_table(m: &MapMetrics) -> Table {
     let mut table = Table::new();
     table.set_header(["box height", "towers", "recall"]);
@@ -197,19 +267,45 @@ pub fn band_table(m: &MapMetrics) -> Table {
 /// The command: tables on stdout, the numbers as JSON in `out`.
 pub fn write_all(
     model: &Path,
+    type_model: Option<&Path>,
     detector_options: &DetectorOptions,
     options: &DetectorEvalOptions,
     out: &Path,
 ) -> anyhow::Result<()> {
-    let (eval, all, tall) = evaluate(model, detector_options, options)?;
+    let Report {
+        eval,
+        all,
+        tall,
+        tall_any_type,
+        confusion,
+    } = evaluate_report(model, type_model, detector_options, options)?;
     println!(
-        "Detector {} ({}x{} input) on {} frames of {} held-out worlds (seed {})\n",
-        eval.model, eval.input.0, eval.input.1, eval.images, options.worlds, options.seed
+        "Detector {} ({}x{} input), types from {}, on {} frames of {} held-out worlds (seed {})\n",
+        eval.model,
+        eval.input.0,
+        eval.input.1,
+        eval.type_model.as_deref().unwrap_or("the detector"),
+        eval.images,
+        options.worlds,
+        options.seed
     );
     println!("All towers:\n{}\n", table(&all));
     println!(
         "Towers taller than {TARGET_MIN_HEIGHT_PX} px (the target):\n{}\n",
         table(&tall)
+    );
+    println!(
+        "Towers taller than {TARGET_MIN_HEIGHT_PX} px, type ignored: P {:.3}, R {:.3}, mAP50 {:.3}, mAP50-95 {:.3}\n",
+        tall_any_type.overall.precision,
+        tall_any_type.overall.recall,
+        tall_any_type.overall.ap50,
+        tall_any_type.overall.ap50_95
+    );
+    println!(
+        "Types given to towers taller than {TARGET_MIN_HEIGHT_PX} px (score >= {}, IoU >= 0.5); {:.1} % of the towers found got the right type:\n{}\n",
+        options.recall_score,
+        100.0 * confusion.type_accuracy_of_found(),
+        confusion_table(&confusion)
     );
     println!(
         "Recall by box height (score >= {}):\n{}\n",

@@ -155,9 +155,15 @@ pub async fn run_edge(
                     ..PostprocessParams::default()
                 },
             };
-            let yolo = YoloDetector::load(&config.detector.model, &options).context(
+            let yolo = YoloDetector::load_with_types(
+                &config.detector.model,
+                config.detector.type_model(),
+                &options,
+            )
+            .context(
                 "loading the detector (`cargo xtask setup-ort` installs ONNX Runtime; \
-                 `--detector oracle` flies the simulator without it)",
+                 `--no-type-model` runs without the type classifier; \
+                 `--detector oracle` flies the simulator without either)",
             )?;
             let name = config
                 .detector

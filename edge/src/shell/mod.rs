@@ -16,6 +16,7 @@ pub mod node;
 pub mod onnx;
 pub mod progress;
 pub mod tracking_eval_cmd;
+pub mod type_classifier;
 pub mod yolo;
 
 pub use error::ShellError;

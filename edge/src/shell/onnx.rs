@@ -12,6 +12,8 @@ use ort::session::Session;
 use ort::value::Tensor;
 use towernav_geometry::PixelBox;
 
+use crate::detector::type_stage::write_nchw;
+
 #[derive(Debug, thiserror::Error)]
 pub enum OnnxError {
     #[error(
@@ -195,12 +197,7 @@ impl ReidModel {
             let crop = image::imageops::crop_imm(image, x0, y0, cw, ch).to_image();
             let resized =
                 image::imageops::resize(&crop, self.width, self.height, FilterType::Triangle);
-            for (x, y, p) in resized.enumerate_pixels() {
-                for ch_i in 0..3 {
-                    data[((n * 3 + ch_i) * h + y as usize) * w + x as usize] =
-                        f32::from(p[ch_i]) / 255.0;
-                }
-            }
+            write_nchw(&resized, n, &mut data);
         }
         let fail = |reason: String| OnnxError::Run {
             path: self.path.clone(),

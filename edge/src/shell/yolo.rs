@@ -10,7 +10,10 @@ use ort::value::TensorRef;
 use towernav_protocol::Detection;
 
 use super::onnx::{OnnxError, load_session};
-use crate::detector::{ClassMap, Layout, PostprocessParams, Preprocessor, layout, postprocess};
+use super::type_classifier::TypeClassifier;
+use crate::detector::{
+    ClassMap, Layout, PostprocessParams, Preprocessor, ScoreMode, layout, postprocess,
+};
 
 /// How to run the detector.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,6 +43,8 @@ pub struct DetectorInfo {
     pub input_height: u32,
     pub layout: Layout,
     pub classes: Vec<String>,
+    /// The second stage that reads each box's type at full resolution, if any.
+    pub type_model: Option<PathBuf>,
 }
 
 pub struct YoloDetector {
@@ -49,6 +54,7 @@ pub struct YoloDetector {
     classes: ClassMap,
     pre: Preprocessor,
     post: PostprocessParams,
+    types: Option<TypeClassifier>,
 }
 
 impl YoloDetector {
@@ -102,6 +108,7 @@ impl YoloDetector {
             input_height,
             layout,
             classes: classes.names.clone(),
+            type_model: None,
         };
         tracing::info!(model = %path.display(), input = %format!("{input_width}x{input_height}"), ?layout, classes = ?info.classes, "detector loaded");
         Ok(Self {
@@ -111,7 +118,35 @@ impl YoloDetector {
             classes,
             pre: Preprocessor::new(input_width, input_height),
             post: options.post,
+            types: None,
         })
+    }
+
+    /// The detector at `model` and, when `type_model` is given, the classifier
+    /// that names each box's type from its full-resolution crop.
+    pub fn load_with_types(
+        model: &Path,
+        type_model: Option<&Path>,
+        options: &DetectorOptions,
+    ) -> Result<Self, OnnxError> {
+        let detector = Self::load(model, options)?;
+        Ok(match type_model {
+            Some(path) => {
+                let classifier = TypeClassifier::load(path, options.threads, options.cuda)?;
+                detector.with_type_classifier(path, classifier)
+            }
+            None => detector,
+        })
+    }
+
+    /// Let `classifier` name each box's type from its full-resolution crop.
+    pub fn with_type_classifier(mut self, path: &Path, classifier: TypeClassifier) -> Self {
+        self.info.type_model = Some(path.to_path_buf());
+        self.types = Some(classifier);
+        // The classifier names the type: rank boxes by how sure the detector
+        // is of a tower, whatever type it guessed.
+        self.post.score = ScoreMode::AnyType;
+        self
     }
 
     pub fn info(&self) -> &DetectorInfo {
@@ -141,7 +176,7 @@ impl YoloDetector {
             .try_extract_tensor::<f32>()
             .map_err(|e| fail(format!("output is not float32: {e}")))?;
         let out_shape: Vec<usize> = out_shape.iter().map(|d| *d as usize).collect();
-        postprocess(
+        let dets = postprocess(
             values,
             &out_shape,
             &self.classes,
@@ -149,6 +184,10 @@ impl YoloDetector {
             frame.dimensions(),
             &self.post,
         )
-        .map_err(|e| fail(e.to_string()))
+        .map_err(|e| fail(e.to_string()))?;
+        match &mut self.types {
+            Some(types) => types.retype(frame, &dets, self.post.nms_iou),
+            None => Ok(dets),
+        }
     }
 }

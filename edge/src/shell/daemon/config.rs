@@ -136,6 +136,10 @@ pub enum DetectorKind {
 pub struct DetectorSection {
     pub kind: DetectorKind,
     pub model: PathBuf,
+    /// Name each box's type with the classifier at `type_model`, which reads
+    /// the full-resolution crop (off: the detector's own types).
+    pub classify_types: bool,
+    pub type_model: PathBuf,
     pub threads: usize,
     pub cuda: bool,
     pub min_score: f32,
@@ -148,6 +152,13 @@ pub struct LandmarksSection {
     pub file: Option<PathBuf>,
     /// Keep a replica of the ground station's landmarks here and follow its changes.
     pub replica: Option<PathBuf>,
+}
+
+impl DetectorSection {
+    /// The type classifier's model, when it is on.
+    pub fn type_model(&self) -> Option<&std::path::Path> {
+        self.classify_types.then_some(self.type_model.as_path())
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -252,6 +263,8 @@ impl Default for DetectorSection {
         Self {
             kind: DetectorKind::Yolo,
             model: "models/towers.onnx".into(),
+            classify_types: true,
+            type_model: "models/tower-types.onnx".into(),
             threads: 2,
             cuda: false,
             min_score: 0.25,
