@@ -29,6 +29,15 @@ fn detector(c: &mut Criterion) {
         b.iter(|| pre.run(&frame, 0).map(|(lb, _)| lb.scale))
     });
 
+    let boxes: Vec<_> = truth.boxes.iter().map(|b| b.bbox).collect();
+    let mut batch = Vec::new();
+    c.bench_function(&format!("type_crops_{}boxes", boxes.len()), |b| {
+        b.iter(|| {
+            towernav_edge::detector::type_stage::crop_batch(&frame, &boxes, 64, &mut batch);
+            batch.len()
+        })
+    });
+
     let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/towers.onnx");
     let threads = std::env::var("TOWERNAV_THREADS")
         .ok()

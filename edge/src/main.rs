@@ -73,12 +73,10 @@ struct DetectorArgs {
     /// YOLO model (Ultralytics ONNX export, classes A-D).
     #[arg(long, default_value = "models/towers.onnx")]
     model: PathBuf,
-    /// Tower-type classifier run on each box's full-resolution crop.
-    #[arg(long, default_value = "models/tower-types.onnx")]
-    type_model: PathBuf,
-    /// Keep the detector's own types (no type classifier).
+    /// Tower-type classifier run on each box's full-resolution crop
+    /// (`models/tower-types.onnx`); none: the detector's own types.
     #[arg(long)]
-    no_type_model: bool,
+    type_model: Option<PathBuf>,
     /// ONNX Runtime threads for inference.
     #[arg(long, default_value_t = 2)]
     threads: usize,
@@ -92,7 +90,7 @@ struct DetectorArgs {
 
 impl DetectorArgs {
     fn type_model(&self) -> Option<&std::path::Path> {
-        (!self.no_type_model).then_some(self.type_model.as_path())
+        self.type_model.as_deref()
     }
 
     fn options(&self) -> DetectorOptions {
