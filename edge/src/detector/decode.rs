@@ -135,13 +135,27 @@ fn best_class(scores: impl Iterator<Item = f32>) -> (usize, f32) {
 
 /// Class-aware NMS: within a class, keep the best box and drop any other that
 /// overlaps it by more than `iou_max`; highest scores first.
-pub fn nms(mut dets: Vec<RawDetection>, iou_max: f64) -> Vec<RawDetection> {
+pub fn nms(dets: Vec<RawDetection>, iou_max: f64) -> Vec<RawDetection> {
+    suppress(dets, iou_max, |a, b| a.class == b.class)
+}
+
+/// NMS across classes: one box per tower, for a second stage that names the
+/// type itself (and would otherwise classify the same tower twice).
+pub fn nms_any_class(dets: Vec<RawDetection>, iou_max: f64) -> Vec<RawDetection> {
+    suppress(dets, iou_max, |_, _| true)
+}
+
+fn suppress(
+    mut dets: Vec<RawDetection>,
+    iou_max: f64,
+    compete: impl Fn(&RawDetection, &RawDetection) -> bool,
+) -> Vec<RawDetection> {
     dets.sort_by(|a, b| b.score.total_cmp(&a.score));
     let mut kept: Vec<RawDetection> = Vec::with_capacity(dets.len());
     for d in dets {
         if kept
             .iter()
-            .all(|k| k.class != d.class || k.bbox.iou(&d.bbox) <= iou_max)
+            .all(|k| !compete(k, &d) || k.bbox.iou(&d.bbox) <= iou_max)
         {
             kept.push(d);
         }
@@ -238,6 +252,8 @@ mod tests {
             3,
             "the overlapping same-class box goes, the other class stays"
         );
+        let any = nms_any_class(vec![d(0.0, 0, 0.9), d(2.0, 1, 0.7), d(100.0, 0, 0.6)], 0.5);
+        assert_eq!(any.len(), 2, "across classes, the overlapping box goes too");
         assert!(kept.iter().all(|k| k.score != 0.8));
     }
 }

@@ -4,7 +4,7 @@ use towernav_geometry::PixelBox;
 use towernav_protocol::Detection;
 
 use super::classes::ClassMap;
-use super::decode::{LayoutError, ScoreMode, decode, nms};
+use super::decode::{LayoutError, ScoreMode, decode, nms, nms_any_class};
 use super::letterbox::Letterbox;
 
 /// Score and overlap thresholds.
@@ -45,7 +45,11 @@ pub fn postprocess(
 ) -> Result<Vec<Detection>, LayoutError> {
     let raw = decode(output, shape, classes.len(), params.min_score, params.score)?;
     let (w, h) = (f64::from(frame_size.0), f64::from(frame_size.1));
-    Ok(nms(raw, params.nms_iou)
+    let kept = match params.score {
+        ScoreMode::BestClass => nms(raw, params.nms_iou),
+        ScoreMode::AnyType => nms_any_class(raw, params.nms_iou),
+    };
+    Ok(kept
         .into_iter()
         .filter_map(|d| {
             let bbox: PixelBox = letterbox.to_frame(&d.bbox).clipped(w, h);

@@ -96,6 +96,10 @@ pub fn load_session(path: &Path, threads: usize, cuda: bool) -> Result<Session, 
     let builder = Session::builder(env)
         .map_err(|e| bad(e.to_string()))?
         .with_intra_threads(threads.max(1))
+        .map_err(|e| bad(e.to_string()))?
+        // Threads that spin after a run steal the cores from the next
+        // session's run (the detector's from the type classifier's).
+        .with_intra_op_spinning(false)
         .map_err(|e| bad(e.to_string()))?;
     let mut builder = if cuda {
         with_cuda(builder).map_err(bad)?
