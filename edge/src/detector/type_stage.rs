@@ -32,8 +32,13 @@ pub fn crop_square(b: &PixelBox) -> (i64, i64, u32) {
 /// The crop of `b`: its square, grey past the frame, resized to `size` square.
 pub fn type_crop(frame: &RgbImage, b: &PixelBox, size: u32) -> RgbImage {
     let (left, top, side) = crop_square(b);
-    let mut square = RgbImage::from_pixel(side, side, image::Rgb(GREY));
     let (fw, fh) = (i64::from(frame.width()), i64::from(frame.height()));
+    if left >= 0 && top >= 0 && left + i64::from(side) <= fw && top + i64::from(side) <= fh {
+        // Inside the frame (the usual case): resize straight from it, no copy.
+        let view = image::imageops::crop_imm(frame, left as u32, top as u32, side, side);
+        return image::imageops::resize(&*view, size, size, FilterType::Triangle);
+    }
+    let mut square = RgbImage::from_pixel(side, side, image::Rgb(GREY));
     let (x0, y0) = (left.max(0), top.max(0));
     let (x1, y1) = (
         (left + i64::from(side)).min(fw),
@@ -117,6 +122,17 @@ mod tests {
 
     #[test]
     fn the_crop_is_the_padded_square_around_the_box_grey_past_the_edge() {
+        // Inside the frame, the crop is the frame's own pixels.
+        let mut frame = RgbImage::from_pixel(200, 100, image::Rgb([10, 20, 30]));
+        frame.put_pixel(60, 40, image::Rgb([200, 0, 0]));
+        let inside = PixelBox::new(50.0, 30.0, 70.0, 50.0);
+        let (x, y, side) = crop_square(&inside);
+        let crop = type_crop(&frame, &inside, side);
+        assert_eq!(
+            crop.get_pixel((60 - x) as u32, (40 - y) as u32).0,
+            [200, 0, 0]
+        );
+        assert_eq!(crop.get_pixel(0, 0).0, [10, 20, 30]);
         // A white frame: inside the frame the crop is white, past it grey.
         let frame = RgbImage::from_pixel(200, 100, image::Rgb([255, 255, 255]));
         let b = PixelBox::new(0.0, 20.0, 20.0, 60.0);

@@ -100,27 +100,17 @@ fn band_names() -> Vec<String> {
         .collect()
 }
 
-/// Run `model` over the held-out worlds and score it.
-pub fn evaluate(
-    model: &Path,
-    type_model: Option<&Path>,
-    detector_options: &DetectorOptions,
-    options: &DetectorEvalOptions,
-) -> anyhow::Result<(DetectorEval, MapMetrics, MapMetrics)> {
-    let report = evaluate_report(model, type_model, detector_options, options)?;
-    Ok((report.eval, report.all, report.tall))
-}
-
 /// Everything `write_all` prints.
-struct Report {
-    eval: DetectorEval,
-    all: MapMetrics,
-    tall: MapMetrics,
-    tall_any_type: MapMetrics,
-    confusion: ConfusionMatrix,
+pub struct Report {
+    pub eval: DetectorEval,
+    pub all: MapMetrics,
+    pub tall: MapMetrics,
+    pub tall_any_type: MapMetrics,
+    pub confusion: ConfusionMatrix,
 }
 
-fn evaluate_report(
+/// Run `model` (and `type_model`, if any) over the held-out worlds and score it.
+pub fn evaluate(
     model: &Path,
     type_model: Option<&Path>,
     detector_options: &DetectorOptions,
@@ -278,7 +268,7 @@ pub fn write_all(
         tall,
         tall_any_type,
         confusion,
-    } = evaluate_report(model, type_model, detector_options, options)?;
+    } = evaluate(model, type_model, detector_options, options)?;
     println!(
         "Detector {} ({}x{} input), types from {}, on {} frames of {} held-out worlds (seed {})\n",
         eval.model,

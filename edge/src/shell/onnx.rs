@@ -12,6 +12,7 @@ use ort::session::Session;
 use ort::value::Tensor;
 use towernav_geometry::PixelBox;
 
+use crate::detector::ClassMap;
 use crate::detector::type_stage::write_nchw;
 
 #[derive(Debug, thiserror::Error)]
@@ -109,6 +110,44 @@ pub fn load_session(path: &Path, threads: usize, cuda: bool) -> Result<Session, 
     builder
         .commit_from_memory(&bytes)
         .map_err(|e| bad(format!("not a loadable ONNX model: {e}")))
+}
+
+/// The classes a model's `names` metadata lists, checked against the tower types.
+pub fn model_classes(session: &Session, path: &Path) -> Result<ClassMap, OnnxError> {
+    let bad = |reason: String| OnnxError::Model {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let names = session
+        .metadata()
+        .map_err(|e| bad(format!("reading its metadata: {e}")))?
+        .custom("names");
+    ClassMap::from_metadata(names.as_deref()).map_err(|e| bad(e.to_string()))
+}
+
+/// The name and dimensions of a model's one input (`what`: what it should
+/// hold, for the error when there is not exactly one).
+pub fn only_input(
+    session: &Session,
+    path: &Path,
+    what: &str,
+) -> Result<(String, Vec<i64>), OnnxError> {
+    let bad = |reason: String| OnnxError::Model {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let [input] = session.inputs() else {
+        return Err(bad(format!(
+            "expected one input ({what}), found {}",
+            session.inputs().len()
+        )));
+    };
+    let dims = input
+        .dtype()
+        .tensor_shape()
+        .map(|s| s.iter().copied().collect())
+        .ok_or_else(|| bad("its input is not a tensor".into()))?;
+    Ok((input.name().to_string(), dims))
 }
 
 #[cfg(feature = "cuda")]

@@ -11,7 +11,7 @@ use ort::value::TensorRef;
 use towernav_geometry::PixelBox;
 use towernav_protocol::Detection;
 
-use super::onnx::{OnnxError, load_session};
+use super::onnx::{OnnxError, load_session, model_classes, only_input};
 use crate::detector::ClassMap;
 use crate::detector::type_stage::{crop_batch, retype};
 
@@ -38,22 +38,8 @@ impl TypeClassifier {
             path: path.to_path_buf(),
             reason,
         };
-        let names = session
-            .metadata()
-            .map_err(|e| bad(format!("reading its metadata: {e}")))?
-            .custom("names");
-        let classes = ClassMap::from_metadata(names.as_deref()).map_err(|e| bad(e.to_string()))?;
-        let [input] = session.inputs() else {
-            return Err(bad(format!(
-                "expected one input (the crops), found {}",
-                session.inputs().len()
-            )));
-        };
-        let dims: Vec<i64> = input
-            .dtype()
-            .tensor_shape()
-            .map(|s| s.iter().copied().collect())
-            .ok_or_else(|| bad("its input is not a tensor".into()))?;
+        let classes = model_classes(&session, path)?;
+        let (input_name, dims) = only_input(&session, path, "the crops")?;
         let size = match dims.as_slice() {
             [_, 3, h, w] if *h > 0 && h == w => *h as u32,
             other => {
@@ -80,7 +66,7 @@ impl TypeClassifier {
         }
         tracing::info!(model = %path.display(), crop = size, "tower-type classifier loaded");
         Ok(Self {
-            input_name: input.name().to_string(),
+            input_name,
             session,
             path: path.to_path_buf(),
             classes,

@@ -9,7 +9,7 @@ use ort::session::Session;
 use ort::value::TensorRef;
 use towernav_protocol::Detection;
 
-use super::onnx::{OnnxError, load_session};
+use super::onnx::{OnnxError, load_session, model_classes, only_input};
 use super::type_classifier::TypeClassifier;
 use crate::detector::{
     ClassMap, Layout, PostprocessParams, Preprocessor, ScoreMode, layout, postprocess,
@@ -66,22 +66,8 @@ impl YoloDetector {
             path: path.to_path_buf(),
             reason,
         };
-        let names = session
-            .metadata()
-            .map_err(|e| bad(format!("reading its metadata: {e}")))?
-            .custom("names");
-        let classes = ClassMap::from_metadata(names.as_deref()).map_err(|e| bad(e.to_string()))?;
-        let [input] = session.inputs() else {
-            return Err(bad(format!(
-                "expected one input (the image), found {}",
-                session.inputs().len()
-            )));
-        };
-        let dims: Vec<i64> = input
-            .dtype()
-            .tensor_shape()
-            .map(|s| s.iter().copied().collect())
-            .ok_or_else(|| bad("its input is not a tensor".into()))?;
+        let classes = model_classes(&session, path)?;
+        let (input_name, dims) = only_input(&session, path, "the image")?;
         let (input_height, input_width) = match dims.as_slice() {
             [1 | -1, 3, h, w] if *h > 0 && *w > 0 => (*h as u32, *w as u32),
             other => {
@@ -112,7 +98,7 @@ impl YoloDetector {
         };
         tracing::info!(model = %path.display(), input = %format!("{input_width}x{input_height}"), ?layout, classes = ?info.classes, "detector loaded");
         Ok(Self {
-            input_name: input.name().to_string(),
+            input_name,
             session,
             info,
             classes,
