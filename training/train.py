@@ -99,8 +99,13 @@ def main() -> int:
             seed=args.seed,
             deterministic=False,
             patience=100,
+            # A later stage starts from trained weights: its warm-up ramps
+            # every rate up from zero (AdamW's fresh moments with the full rate
+            # at once, or the default bias rate of 0.1, knock them back by
+            # more than an epoch's progress).
             warmup_epochs=1.0,
-            close_mosaic=2,
+            warmup_bias_lr=0.0 if args.init else 0.1,
+            close_mosaic=3 if args.init else 2,
             mosaic=1.0,
             scale=0.5,
             fliplr=0.5,

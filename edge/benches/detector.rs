@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use towernav_edge::detector::Preprocessor;
+use towernav_edge::detector::{CropBatch, Preprocessor};
 use towernav_edge::shell::yolo::{DetectorOptions, YoloDetector};
 use towernav_sim::{Scenario, World};
 
@@ -29,13 +29,14 @@ fn detector(c: &mut Criterion) {
         b.iter(|| pre.run(&frame, 0).map(|(lb, _)| lb.scale))
     });
 
-    let boxes: Vec<_> = truth.boxes.iter().map(|b| b.bbox).collect();
-    let mut batch = Vec::new();
-    c.bench_function(&format!("type_crops_{}boxes", boxes.len()), |b| {
-        b.iter(|| {
-            towernav_edge::detector::type_stage::crop_batch(&frame, &boxes, 64, &mut batch);
-            batch.len()
-        })
+    let regions: Vec<_> = truth
+        .boxes
+        .iter()
+        .map(|b| towernav_edge::detector::type_stage::crop_square(&b.bbox))
+        .collect();
+    let mut crops = CropBatch::new(64, 64);
+    c.bench_function(&format!("type_crops_{}boxes", regions.len()), |b| {
+        b.iter(|| crops.cut(&frame, &regions).map(|batch| batch.len()))
     });
 
     let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/towers.onnx");

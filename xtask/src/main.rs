@@ -1,4 +1,4 @@
-//! `cargo xtask demo | gs | test | train | screenshot | bench-edge | setup-ort`: the project's two front doors, the ground station, and the detector's training.
+//! `cargo xtask demo | gs | test | train | quantize | screenshot | bench-edge | setup-ort`: the project's two front doors, the ground station, and the detector's training.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -52,6 +52,8 @@ enum Task {
         #[arg(long)]
         continue_run: bool,
     },
+    /// INT8 versions of the finished training run's two models (ONNX Runtime's quantizer).
+    Quantize,
     /// The edge daemon end to end on 1280x720 camera frames with the shipped detector: frames/s, latency, peak RSS.
     BenchEdge,
     /// A screenshot of the ground station's real window under Xvfb, beside a demo edge (docs/ground-station.png).
@@ -78,6 +80,7 @@ fn main() -> anyhow::Result<()> {
         Task::Test => test(&root),
         Task::BenchEdge => bench_edge::bench_edge(&root),
         Task::Screenshot { seconds } => screenshot::screenshot(&root, seconds),
+        Task::Quantize => train::quantize(&root),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
         Task::Train {
             foreground,

@@ -8,9 +8,11 @@
 //!    it trains from scratch within a wall-clock budget, resumes from its last
 //!    checkpoint when run again after an interruption, exports ONNX and evaluates;
 //! 4. then `training/train_types.py`: the tower-type classifier the edge runs
-//!    on each box's full-resolution crop (about 25 minutes), into `target/train/types`.
+//!    on each box's full-resolution crop (about 35 minutes), into `target/train/types`;
+//! 5. then `training/quantize.py`: INT8 versions of both (`cargo xtask quantize`
+//!    alone redoes this step).
 //!
-//! `--foreground` waits for it; `--ship` copies the exported model into
+//! `--foreground` waits for it; `--ship` copies the exported models into
 //! `models/` once a run has finished.
 
 use std::os::unix::process::CommandExt;
@@ -72,7 +74,7 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     let types_dir = work.join("types");
     let mut cmd = Command::new("nice");
     cmd.args(["-n", "19", "sh", "-c"])
-        .arg(r#""$1" "$2" --data "$3" --out "$4" --hours "$5" ${6:+--init "$6"} && "$1" "$7" --data "$3" --out "$8""#)
+        .arg(r#""$1" "$2" --data "$3" --out "$4" --hours "$5" ${6:+--init "$6"} && "$1" "$7" --data "$3" --out "$8" && py="$1" q="$9" && shift 9 && "$py" "$q" "$@""#)
         .arg("sh")
         .arg(&python)
         .arg(root.join("training").join("train.py"))
@@ -82,6 +84,9 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         .arg(init.as_deref().unwrap_or(Path::new("")))
         .arg(root.join("training").join("train_types.py"))
         .arg(&types_dir)
+        .arg(root.join("training").join("quantize.py"))
+        // The quantizer's own arguments, "$@" after `shift 9`.
+        .args(quantize_args(&work))
         .env("OMP_WAIT_POLICY", "PASSIVE")
         .current_dir(root);
     if options.foreground {
@@ -112,6 +117,33 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         log_path.display()
     );
     Ok(())
+}
+
+/// `training/quantize.py`'s arguments for the run in `work`: both exports,
+/// calibrated on their own training inputs.
+fn quantize_args(work: &Path) -> Vec<PathBuf> {
+    let types = work.join("types");
+    vec![
+        "--detector".into(),
+        work.join("run").join("towers.onnx"),
+        "--frames".into(),
+        work.join("dataset").join("images").join("train"),
+        "--types".into(),
+        types.join("tower-types.onnx"),
+        "--crops".into(),
+        types.join("crops").join("train"),
+    ]
+}
+
+/// `cargo xtask quantize`: INT8 versions of the finished run's two models,
+/// beside them (`towers-int8.onnx`, `tower-types-int8.onnx`).
+pub fn quantize(root: &Path) -> anyhow::Result<()> {
+    let python = ensure_venv(root)?;
+    let work = target_dir(root).join("train");
+    run(Command::new(python)
+        .arg(root.join("training").join("quantize.py"))
+        .args(quantize_args(&work))
+        .current_dir(root))
 }
 
 /// Move a finished run to `run-stage<N>` and return its best weights, the
@@ -175,32 +207,39 @@ fn ship(root: &Path, run_dir: &Path, types_dir: &Path) -> anyhow::Result<()> {
             run_dir.display()
         );
     }
-    let size = std::fs::metadata(&onnx)?.len();
-    if size > 15 * 1024 * 1024 {
-        bail!(
-            "{} is {size} bytes; the shipped model must be 15 MB at most",
-            onnx.display()
-        );
-    }
     let models = root.join("models");
     std::fs::create_dir_all(&models)?;
-    std::fs::copy(&onnx, models.join("towers.onnx"))?;
-    std::fs::copy(&summary, models.join("towers.training.json"))?;
-    eprintln!(
-        "xtask: shipped {} ({size} bytes) and its training summary into {}",
-        onnx.display(),
-        models.display()
-    );
-    let types = types_dir.join("tower-types.onnx");
-    let types_summary = types_dir.join("summary.json");
-    if types.exists() && types_summary.exists() {
-        std::fs::copy(&types, models.join("tower-types.onnx"))?;
-        std::fs::copy(&types_summary, models.join("tower-types.training.json"))?;
-        eprintln!("xtask: shipped {} too", types.display());
-    } else {
+    let files = [
+        (onnx, "towers.onnx"),
+        (summary, "towers.training.json"),
+        (run_dir.join("towers-int8.onnx"), "towers-int8.onnx"),
+        (types_dir.join("tower-types.onnx"), "tower-types.onnx"),
+        (types_dir.join("summary.json"), "tower-types.training.json"),
+        (
+            types_dir.join("tower-types-int8.onnx"),
+            "tower-types-int8.onnx",
+        ),
+    ];
+    for (src, name) in files {
+        if !src.exists() {
+            eprintln!(
+                "xtask: no {} (models/{name} left as it is; `cargo xtask quantize` makes the INT8 ones)",
+                src.display()
+            );
+            continue;
+        }
+        let size = std::fs::metadata(&src)?.len();
+        if size > 15 * 1024 * 1024 {
+            bail!(
+                "{} is {size} bytes; a shipped model must be 15 MB at most",
+                src.display()
+            );
+        }
+        std::fs::copy(&src, models.join(name))
+            .with_context(|| format!("copying {} into {}", src.display(), models.display()))?;
         eprintln!(
-            "xtask: no finished type classifier in {} (models/tower-types.onnx left as it is)",
-            types_dir.display()
+            "xtask: shipped {} ({size} bytes) as models/{name}",
+            src.display()
         );
     }
     eprintln!("xtask: update models/README.md with `towernav-edge eval-detector`'s numbers");

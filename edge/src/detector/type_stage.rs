@@ -7,73 +7,26 @@
 //! their types apart. The classifier looks again at full resolution.
 //! `training/train_types.py` cuts its training crops the same way.
 
-use image::RgbImage;
-use image::imageops::FilterType;
 use towernav_geometry::PixelBox;
 use towernav_protocol::{Detection, TowerType};
 
 use super::classes::ClassMap;
+use super::crop_batch::Region;
 use super::decode::{RawDetection, nms};
 
 /// Crop side over the box's longer edge (`PAD` in `training/train_types.py`).
 pub const CROP_PAD: f64 = 1.15;
-/// Outside the frame, as in the letterbox.
-const GREY: [u8; 3] = [114, 114, 114];
 
-/// The square around a box that the classifier sees: left, top, side, in
-/// whole frame pixels (it may reach past the frame's edges).
-pub fn crop_square(b: &PixelBox) -> (i64, i64, u32) {
+/// The square around a box that the classifier sees, in whole frame pixels
+/// (it may reach past the frame's edges; `CropBatch` reads grey there).
+pub fn crop_square(b: &PixelBox) -> Region {
     let side = CROP_PAD * b.width().max(b.height());
-    let left = (b.center_x() - side / 2.0).round() as i64;
-    let top = (b.center_y() - side / 2.0).round() as i64;
-    (left, top, (side.round() as u32).max(1))
-}
-
-/// The crop of `b`: its square, grey past the frame, resized to `size` square.
-pub fn type_crop(frame: &RgbImage, b: &PixelBox, size: u32) -> RgbImage {
-    let (left, top, side) = crop_square(b);
-    let (fw, fh) = (i64::from(frame.width()), i64::from(frame.height()));
-    if left >= 0 && top >= 0 && left + i64::from(side) <= fw && top + i64::from(side) <= fh {
-        // Inside the frame (the usual case): resize straight from it, no copy.
-        let view = image::imageops::crop_imm(frame, left as u32, top as u32, side, side);
-        return image::imageops::resize(&*view, size, size, FilterType::Triangle);
-    }
-    let mut square = RgbImage::from_pixel(side, side, image::Rgb(GREY));
-    let (x0, y0) = (left.max(0), top.max(0));
-    let (x1, y1) = (
-        (left + i64::from(side)).min(fw),
-        (top + i64::from(side)).min(fh),
-    );
-    if x1 > x0 && y1 > y0 {
-        let part = image::imageops::crop_imm(
-            frame,
-            x0 as u32,
-            y0 as u32,
-            (x1 - x0) as u32,
-            (y1 - y0) as u32,
-        );
-        image::imageops::replace(&mut square, &*part, x0 - left, y0 - top);
-    }
-    image::imageops::resize(&square, size, size, FilterType::Triangle)
-}
-
-/// Write `image` as crop `n` of an [N, 3, H, W] batch, RGB in 0..1.
-pub fn write_nchw(image: &RgbImage, n: usize, batch: &mut [f32]) {
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    for (x, y, p) in image.enumerate_pixels() {
-        for c in 0..3 {
-            batch[((n * 3 + c) * h + y as usize) * w + x as usize] = f32::from(p[c]) / 255.0;
-        }
-    }
-}
-
-/// Fill `batch` (reused frame to frame) with the crops of `boxes`.
-pub fn crop_batch(frame: &RgbImage, boxes: &[PixelBox], size: u32, batch: &mut Vec<f32>) {
-    let plane = 3 * (size as usize) * (size as usize);
-    batch.clear();
-    batch.resize(boxes.len() * plane, 0.0);
-    for (n, b) in boxes.iter().enumerate() {
-        write_nchw(&type_crop(frame, b, size), n, batch);
+    let size = (side.round() as u32).max(1);
+    Region {
+        left: (b.center_x() - side / 2.0).round() as i64,
+        top: (b.center_y() - side / 2.0).round() as i64,
+        width: size,
+        height: size,
     }
 }
 
@@ -121,41 +74,16 @@ mod tests {
     }
 
     #[test]
-    fn the_crop_is_the_padded_square_around_the_box_grey_past_the_edge() {
-        // Inside the frame, the crop is the frame's own pixels.
-        let mut frame = RgbImage::from_pixel(200, 100, image::Rgb([10, 20, 30]));
-        frame.put_pixel(60, 40, image::Rgb([200, 0, 0]));
-        let inside = PixelBox::new(50.0, 30.0, 70.0, 50.0);
-        let (x, y, side) = crop_square(&inside);
-        let crop = type_crop(&frame, &inside, side);
-        assert_eq!(
-            crop.get_pixel((60 - x) as u32, (40 - y) as u32).0,
-            [200, 0, 0]
-        );
-        assert_eq!(crop.get_pixel(0, 0).0, [10, 20, 30]);
-        // A white frame: inside the frame the crop is white, past it grey.
-        let frame = RgbImage::from_pixel(200, 100, image::Rgb([255, 255, 255]));
+    fn the_square_is_centred_on_the_box_and_may_pass_the_edge() {
         let b = PixelBox::new(0.0, 20.0, 20.0, 60.0);
-        assert_eq!(crop_square(&b), (-13, 17, 46));
-        let crop = type_crop(&frame, &b, 46);
-        assert_eq!(crop.get_pixel(0, 20).0, GREY, "left of the frame");
-        assert_eq!(crop.get_pixel(30, 20).0, [255, 255, 255]);
-    }
-
-    #[test]
-    fn the_batch_is_planar_rgb_in_unit_range() {
-        let mut frame = RgbImage::from_pixel(64, 64, image::Rgb([255, 0, 51]));
-        frame.put_pixel(0, 0, image::Rgb([0, 0, 0]));
-        let mut batch = vec![7.0; 3];
-        let b = PixelBox::new(10.0, 10.0, 30.0, 40.0);
-        crop_batch(&frame, &[b, b], 8, &mut batch);
-        assert_eq!(batch.len(), 2 * 3 * 64);
-        let plane = 64;
-        assert!((batch[3 * plane + 5] - 1.0).abs() < 1e-6, "crop 1, red");
-        assert!(batch[3 * plane + plane + 5].abs() < 1e-6, "crop 1, green");
-        assert!(
-            (batch[3 * plane + 2 * plane + 5] - 0.2).abs() < 1e-6,
-            "crop 1, blue"
+        assert_eq!(
+            crop_square(&b),
+            Region {
+                left: -13,
+                top: 17,
+                width: 46,
+                height: 46
+            }
         );
     }
 
@@ -191,8 +119,9 @@ mod tests {
             w in 1.0..400.0f64, h in 1.0..700.0f64,
         ) {
             let b = PixelBox::new(left, top, left + w, top + h);
-            let (x, y, side) = crop_square(&b);
-            let side = f64::from(side);
+            let r = crop_square(&b);
+            let (x, y, side) = (r.left, r.top, f64::from(r.width));
+            prop_assert_eq!(r.width, r.height);
             prop_assert!(x as f64 <= b.left + 0.5 && y as f64 <= b.top + 0.5);
             prop_assert!(x as f64 + side >= b.right - 0.5 && y as f64 + side >= b.bottom - 0.5);
             prop_assert!((side - CROP_PAD * w.max(h)).abs() <= 0.5);

@@ -6,14 +6,12 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use image::RgbImage;
-use image::imageops::FilterType;
 use ort::environment::Environment;
 use ort::session::Session;
-use ort::value::Tensor;
+use ort::value::TensorRef;
 use towernav_geometry::PixelBox;
 
-use crate::detector::ClassMap;
-use crate::detector::type_stage::write_nchw;
+use crate::detector::{ClassMap, CropBatch, Region};
 
 #[derive(Debug, thiserror::Error)]
 pub enum OnnxError {
@@ -178,6 +176,7 @@ pub struct ReidModel {
     input: String,
     height: u32,
     width: u32,
+    crops: CropBatch,
 }
 
 impl ReidModel {
@@ -216,6 +215,7 @@ impl ReidModel {
             path: path.to_path_buf(),
             height,
             width,
+            crops: CropBatch::new(width, height),
         })
     }
 
@@ -229,25 +229,29 @@ impl ReidModel {
             return Ok(Vec::new());
         }
         let (h, w) = (self.height as usize, self.width as usize);
-        let mut data = vec![0f32; boxes.len() * 3 * h * w];
-        for (n, b) in boxes.iter().enumerate() {
-            let c = b.clipped(f64::from(image.width()), f64::from(image.height()));
-            let (x0, y0) = (c.left as u32, c.top as u32);
-            let cw =
-                ((c.width().ceil() as u32).max(1)).min(image.width().saturating_sub(x0).max(1));
-            let ch =
-                ((c.height().ceil() as u32).max(1)).min(image.height().saturating_sub(y0).max(1));
-            let crop = image::imageops::crop_imm(image, x0, y0, cw, ch).to_image();
-            let resized =
-                image::imageops::resize(&crop, self.width, self.height, FilterType::Triangle);
-            write_nchw(&resized, n, &mut data);
-        }
+        let regions: Vec<Region> = boxes
+            .iter()
+            .map(|b| {
+                let c = b.clipped(f64::from(image.width()), f64::from(image.height()));
+                let (x0, y0) = (c.left.floor(), c.top.floor());
+                Region {
+                    left: x0 as i64,
+                    top: y0 as i64,
+                    width: ((c.right.ceil() - x0) as u32).max(1),
+                    height: ((c.bottom.ceil() - y0) as u32).max(1),
+                }
+            })
+            .collect();
         let fail = |reason: String| OnnxError::Run {
             path: self.path.clone(),
             reason,
         };
-        let tensor =
-            Tensor::from_array(([boxes.len(), 3, h, w], data)).map_err(|e| fail(e.to_string()))?;
+        let data = self
+            .crops
+            .cut(image, &regions)
+            .map_err(|e| fail(e.to_string()))?;
+        let tensor = TensorRef::from_array_view(([boxes.len(), 3, h, w], data))
+            .map_err(|e| fail(e.to_string()))?;
         let outputs = self
             .session
             .run(ort::inputs![self.input.as_str() => tensor])

@@ -12,8 +12,8 @@ use towernav_geometry::PixelBox;
 use towernav_protocol::Detection;
 
 use super::onnx::{OnnxError, load_session, model_classes, only_input};
-use crate::detector::ClassMap;
-use crate::detector::type_stage::{crop_batch, retype};
+use crate::detector::type_stage::{crop_square, retype};
+use crate::detector::{ClassMap, CropBatch, Region};
 
 /// At most this many boxes a frame are classified, best first; the rest are
 /// dropped. It bounds the frame's work: a camera sees a handful of towers, and
@@ -26,7 +26,7 @@ pub struct TypeClassifier {
     input_name: String,
     classes: ClassMap,
     size: u32,
-    batch: Vec<f32>,
+    crops: CropBatch,
 }
 
 impl TypeClassifier {
@@ -71,7 +71,7 @@ impl TypeClassifier {
             path: path.to_path_buf(),
             classes,
             size,
-            batch: Vec::new(),
+            crops: CropBatch::new(size, size),
         })
     }
 
@@ -88,9 +88,13 @@ impl TypeClassifier {
             path: self.path.clone(),
             reason,
         };
-        crop_batch(frame, boxes, self.size, &mut self.batch);
+        let regions: Vec<Region> = boxes.iter().map(crop_square).collect();
+        let batch = self
+            .crops
+            .cut(frame, &regions)
+            .map_err(|e| fail(e.to_string()))?;
         let s = self.size as usize;
-        let tensor = TensorRef::from_array_view(([boxes.len(), 3, s, s], self.batch.as_slice()))
+        let tensor = TensorRef::from_array_view(([boxes.len(), 3, s, s], batch))
             .map_err(|e| fail(e.to_string()))?;
         let outputs = self
             .session
