@@ -154,19 +154,34 @@ pub fn restrict_to_height(
     dets: &[Scored],
     min_height: f64,
 ) -> (Vec<Labelled>, Vec<Scored>) {
-    let (kept, small): (Vec<Labelled>, Vec<Labelled>) =
-        truth.iter().partition(|t| t.bbox.height() >= min_height);
+    restrict(truth, dets, min_height, &[])
+}
+
+/// As `restrict_to_height`, and the truths flagged in `dont_care` (KITTI's
+/// "don't care": towers cut by the frame's edge or mostly hidden) leave the
+/// same way: finding one is neither a hit nor a false positive. A shorter
+/// `dont_care` leaves the rest cared for.
+pub fn restrict(
+    truth: &[Labelled],
+    dets: &[Scored],
+    min_height: f64,
+    dont_care: &[bool],
+) -> (Vec<Labelled>, Vec<Scored>) {
+    let cared = |(i, t): &(usize, &Labelled)| {
+        t.bbox.height() >= min_height && !dont_care.get(*i).copied().unwrap_or(false)
+    };
+    let (kept, left): (Vec<_>, Vec<_>) = truth.iter().enumerate().partition(cared);
     let dets = dets
         .iter()
         .filter(|d| {
             d.bbox.height() >= min_height
-                && !small
+                && !left
                     .iter()
-                    .any(|s| s.class == d.class && s.bbox.iou(&d.bbox) >= 0.5)
+                    .any(|(_, s)| s.class == d.class && s.bbox.iou(&d.bbox) >= 0.5)
         })
         .copied()
         .collect();
-    (kept, dets)
+    (kept.into_iter().map(|(_, t)| *t).collect(), dets)
 }
 
 fn class_metrics(dets: &[(f32, [bool; 10])], truths: usize, at_score: f32) -> ClassMetrics {
@@ -307,6 +322,46 @@ mod tests {
             d.iter().map(|d| d.score).collect::<Vec<_>>(),
             [0.8, 0.7],
             "the small tower's box leaves; the tall false positive stays"
+        );
+    }
+
+    #[test]
+    fn a_dont_care_tower_is_neither_hit_nor_miss() {
+        let truth = [
+            Labelled {
+                bbox: b(0.0, 100.0),
+                class: 0,
+            },
+            Labelled {
+                bbox: b(200.0, 100.0),
+                class: 0,
+            },
+        ];
+        let dets = [
+            Scored {
+                bbox: b(200.0, 100.0),
+                class: 0,
+                score: 0.9,
+            },
+            Scored {
+                bbox: b(400.0, 100.0),
+                class: 0,
+                score: 0.8,
+            },
+        ];
+        let (t, d) = restrict(&truth, &dets, 40.0, &[false, true]);
+        assert_eq!(t.len(), 1, "the hidden tower leaves");
+        assert_eq!(t[0].bbox, truth[0].bbox);
+        assert_eq!(
+            d.iter().map(|d| d.score).collect::<Vec<_>>(),
+            [0.8],
+            "its box leaves with it; the false positive stays"
+        );
+        let (t, d) = restrict(&truth, &dets, 40.0, &[]);
+        assert_eq!(
+            (t.len(), d.len()),
+            (2, 2),
+            "nothing flagged, nothing leaves"
         );
     }
 

@@ -14,7 +14,7 @@ use towernav_sim::Scenario;
 
 use crate::detector::confusion::ConfusionMatrix;
 use crate::detector::map_eval::{
-    HEIGHT_BANDS, Labelled, MapAccumulator, MapMetrics, Scored, restrict_to_height,
+    HEIGHT_BANDS, Labelled, MapAccumulator, MapMetrics, Scored, restrict, restrict_to_height,
 };
 use crate::shell::progress::bar;
 use crate::shell::yolo::{DetectorOptions, YoloDetector};
@@ -33,6 +33,10 @@ pub struct DetectorEvalOptions {
 /// reported in the height bands).
 pub const TARGET_MIN_HEIGHT_PX: f64 = 40.0;
 
+/// A tower at least this share of whose box is behind nearer objects' boxes
+/// is not in full view.
+pub const HIDDEN_SHARE: f64 = 0.5;
+
 #[derive(Debug, Clone, Serialize)]
 pub struct DetectorEval {
     pub model: String,
@@ -48,6 +52,10 @@ pub struct DetectorEval {
     /// Towers taller than 40 px: rows labelled A..D then background, columns
     /// detected A..D then missed (score >= `recall_score`, IoU >= 0.5).
     pub confusion_taller_than_40px: Vec<Vec<usize>>,
+    /// Towers taller than 40 px that are in full view: those the frame's edge
+    /// cuts or that are at least half hidden behind nearer objects are "don't
+    /// care" (KITTI's way): finding one is neither a hit nor a false positive.
+    pub taller_than_40px_visible: MetricsJson,
     /// Of those towers found at all, the share given the right type.
     pub type_accuracy_of_found: f64,
     /// Wall time per frame of `detect` (pre-processing, inference, post-processing), ms.
@@ -106,6 +114,7 @@ pub struct Report {
     pub all: MapMetrics,
     pub tall: MapMetrics,
     pub tall_any_type: MapMetrics,
+    pub visible: MapMetrics,
     pub confusion: ConfusionMatrix,
 }
 
@@ -121,6 +130,7 @@ pub fn evaluate(
     let mut all = MapAccumulator::new(classes, options.recall_score);
     let mut tall = MapAccumulator::new(classes, options.recall_score);
     let mut tall_any_type = MapAccumulator::new(1, options.recall_score);
+    let mut visible = MapAccumulator::new(classes, options.recall_score);
     let mut confusion = ConfusionMatrix::new(classes, options.recall_score, 0.5);
     let mut latencies = Vec::new();
     let progress = bar(options.worlds * options.frames_per_world, "eval-detector");
@@ -159,6 +169,13 @@ pub fn evaluate(
                 })
                 .collect();
             all.add_image(&labels, &scored);
+            let hidden: Vec<bool> = truth
+                .boxes
+                .iter()
+                .map(|b| b.truncated || b.occluded >= HIDDEN_SHARE)
+                .collect();
+            let (v_labels, v_scored) = restrict(&labels, &scored, TARGET_MIN_HEIGHT_PX, &hidden);
+            visible.add_image(&v_labels, &v_scored);
             let (labels, scored) = restrict_to_height(&labels, &scored, TARGET_MIN_HEIGHT_PX);
             tall.add_image(&labels, &scored);
             confusion.add_image(&labels, &scored);
@@ -175,7 +192,12 @@ pub fn evaluate(
             .copied()
             .unwrap_or(f64::NAN)
     };
-    let (all, tall, tall_any_type) = (all.finish(), tall.finish(), tall_any_type.finish());
+    let (all, tall, tall_any_type, visible) = (
+        all.finish(),
+        tall.finish(),
+        tall_any_type.finish(),
+        visible.finish(),
+    );
     let info = detector.info();
     let eval = DetectorEval {
         model: model.display().to_string(),
@@ -185,6 +207,7 @@ pub fn evaluate(
         all: MetricsJson::from(&all),
         taller_than_40px: MetricsJson::from(&tall),
         taller_than_40px_any_type: MetricsJson::from(&tall_any_type),
+        taller_than_40px_visible: MetricsJson::from(&visible),
         confusion_taller_than_40px: confusion.rows().to_vec(),
         type_accuracy_of_found: confusion.type_accuracy_of_found(),
         latency_ms_p50: at(0.5),
@@ -196,6 +219,7 @@ pub fn evaluate(
         all,
         tall,
         tall_any_type,
+        visible,
         confusion,
     })
 }
@@ -267,6 +291,7 @@ pub fn write_all(
         all,
         tall,
         tall_any_type,
+        visible,
         confusion,
     } = evaluate(model, type_model, detector_options, options)?;
     println!(
@@ -290,6 +315,11 @@ pub fn write_all(
         tall_any_type.overall.recall,
         tall_any_type.overall.ap50,
         tall_any_type.overall.ap50_95
+    );
+    println!(
+        "Towers taller than {TARGET_MIN_HEIGHT_PX} px in full view (cut by the frame's edge or at least {:.0} % hidden: don't care):\n{}\n",
+        100.0 * HIDDEN_SHARE,
+        table(&visible)
     );
     println!(
         "Types given to towers taller than {TARGET_MIN_HEIGHT_PX} px (score >= {}, IoU >= 0.5); {:.1} % of the towers found got the right type:\n{}\n",
