@@ -1,10 +1,10 @@
 //! The shipped tower detector on one 1280x720 rendered frame, pre- and
 //! post-processing included, on ONNX Runtime's CPU provider with 2 threads
-//! (this project's target machine): the detector alone, and with the
-//! tower-type classifier on each box (what the edge runs). Needs the ONNX
-//! Runtime library (`cargo xtask setup-ort`) and `models/towers.onnx`
-//! (`models/tower-types.onnx` for the second); says so and skips the model
-//! runs when one is missing.
+//! (this project's target machine): the float export alone, the INT8 one
+//! alone, and the INT8 one with the INT8 tower-type classifier on each box
+//! (what the daemon runs). Needs the ONNX Runtime library (`cargo xtask
+//! setup-ort`) and the models in `models/`; says so and skips a run whose
+//! model is missing.
 
 use std::path::PathBuf;
 
@@ -39,7 +39,7 @@ fn detector(c: &mut Criterion) {
         b.iter(|| crops.cut(&frame, &regions).map(|batch| batch.len()))
     });
 
-    let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/towers.onnx");
+    let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models");
     let threads = std::env::var("TOWERNAV_THREADS")
         .ok()
         .and_then(|t| t.parse().ok())
@@ -48,22 +48,27 @@ fn detector(c: &mut Criterion) {
         threads,
         ..DetectorOptions::default()
     };
-    let types = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/tower-types.onnx");
-    for (suffix, type_model) in [("", None), ("_with_types", Some(types.as_path()))] {
-        match YoloDetector::load_with_types(&model, type_model, &options) {
+    let types = models.join("tower-types-int8.onnx");
+    let runs = [
+        ("float", "towers.onnx", None),
+        ("int8", "towers-int8.onnx", None),
+        // What the daemon runs by default.
+        ("int8_with_types", "towers-int8.onnx", Some(types.as_path())),
+    ];
+    for (name, model, type_model) in runs {
+        match YoloDetector::load_with_types(&models.join(model), type_model, &options) {
             Ok(mut detector) => {
                 let boxes = detector.detect(&frame, 0).map_or(0, |d| d.len());
-                let input = format!(
-                    "detect_1280x720_{}x{}_{}threads{suffix}_{boxes}boxes",
+                let id = format!(
+                    "detect_1280x720_{}x{}_{threads}threads_{name}_{boxes}boxes",
                     detector.info().input_width,
                     detector.info().input_height,
-                    threads
                 );
-                c.bench_function(&input, |b| {
+                c.bench_function(&id, |b| {
                     b.iter(|| detector.detect(&frame, 0).map(|d| d.len()))
                 });
             }
-            Err(e) => eprintln!("skipping the model benchmark{suffix}: {e}"),
+            Err(e) => eprintln!("skipping the {name} model benchmark: {e}"),
         }
     }
 }

@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
 use towernav_edge::detector::PostprocessParams;
-use towernav_edge::shell::daemon::config::{EdgeConfig, ZenohMode};
+use towernav_edge::shell::daemon::config::{DetectorSection, EdgeConfig, ZenohMode};
 use towernav_edge::shell::detector_eval_cmd::DetectorEvalOptions;
 use towernav_edge::shell::edge_cmd::{run_edge, spawn_signal_watch};
 use towernav_edge::shell::yolo::DetectorOptions;
@@ -70,13 +70,17 @@ enum Command {
 
 #[derive(Args, Clone)]
 struct DetectorArgs {
-    /// YOLO model (Ultralytics ONNX export, classes A-D).
-    #[arg(long, default_value = "models/towers.onnx")]
-    model: PathBuf,
-    /// Tower-type classifier run on each box's full-resolution crop
-    /// (`models/tower-types.onnx`); none: the detector's own types.
+    /// YOLO model (Ultralytics ONNX export, classes A-D); default: the
+    /// daemon's (`towernav-edge print-config`).
     #[arg(long)]
+    model: Option<PathBuf>,
+    /// Tower-type classifier run on each box's full-resolution crop; default:
+    /// the daemon's.
+    #[arg(long, conflicts_with = "no_type_model")]
     type_model: Option<PathBuf>,
+    /// No classifier: the detector's own types.
+    #[arg(long)]
+    no_type_model: bool,
     /// ONNX Runtime threads for inference.
     #[arg(long, default_value_t = 2)]
     threads: usize,
@@ -89,8 +93,21 @@ struct DetectorArgs {
 }
 
 impl DetectorArgs {
-    fn type_model(&self) -> Option<&std::path::Path> {
-        self.type_model.as_deref()
+    /// The daemon's detector section with these flags applied: the evaluator
+    /// scores what the daemon runs unless told otherwise.
+    fn section(&self) -> DetectorSection {
+        let mut section = DetectorSection::default();
+        if let Some(model) = &self.model {
+            section.model = model.clone();
+        }
+        if let Some(type_model) = &self.type_model {
+            section.type_model = type_model.clone();
+            section.classify_types = true;
+        }
+        if self.no_type_model {
+            section.classify_types = false;
+        }
+        section
     }
 
     fn options(&self) -> DetectorOptions {
@@ -327,9 +344,10 @@ fn main() -> anyhow::Result<()> {
         // as Ultralytics' validation does; P and R are read at --min-score.
         let mut detector_options = detector.options();
         detector_options.post.min_score = 0.001;
+        let section = detector.section();
         return towernav_edge::shell::detector_eval_cmd::write_all(
-            &detector.model,
-            detector.type_model(),
+            &section.model,
+            section.type_model(),
             &detector_options,
             &options,
             out,
