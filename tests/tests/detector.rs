@@ -157,7 +157,7 @@ fn an_empty_frame_is_an_error_naming_the_frame() {
     assert!(err.contains("frame 17"), "{err}");
 }
 
-/// The shipped models (detector and type classifier) find every clearly visible tower (taller than 40 px,
+/// The shipped models the daemon runs (INT8 detector and type classifier) find every clearly visible tower (taller than 40 px,
 /// not cut by the frame edge, less than a quarter hidden) with IoU >= 0.6 and the
 /// right type, on frames of the seed's path it was never trained on.
 #[test]
@@ -165,8 +165,8 @@ fn an_empty_frame_is_an_error_naming_the_frame() {
 fn the_shipped_model_finds_the_towers_in_rendered_frames() {
     let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models");
     let mut detector = YoloDetector::load_with_types(
-        &models.join("towers.onnx"),
-        Some(&models.join("tower-types.onnx")),
+        &models.join("towers-int8.onnx"),
+        Some(&models.join("tower-types-int8.onnx")),
         &DetectorOptions::default(),
     )
     .expect("the shipped models load");

@@ -13,6 +13,9 @@ pub struct PostprocessParams {
     /// Candidates below this score are dropped before NMS.
     pub min_score: f32,
     /// Same-class boxes overlapping a better one by more than this are dropped.
+    /// 0.65, not 0.5: towers stand in lines, and seen along a line the far
+    /// ones stand inside the near ones' boxes (held-out mAP50 0.913 -> 0.924;
+    /// Ultralytics uses 0.7).
     pub nms_iou: f64,
     /// Boxes whose clipped height is below this many frame pixels are dropped.
     pub min_height_px: f64,
@@ -26,7 +29,7 @@ impl Default for PostprocessParams {
     fn default() -> Self {
         Self {
             min_score: 0.25,
-            nms_iou: 0.5,
+            nms_iou: 0.65,
             min_height_px: 4.0,
             max_detections: 300,
             score: ScoreMode::BestClass,
