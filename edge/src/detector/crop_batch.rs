@@ -144,6 +144,15 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    fn region(left: i64, top: i64, width: u32, height: u32) -> Region {
+        Region {
+            left,
+            top,
+            width,
+            height,
+        }
+    }
+
     fn at(batch: &[f32], n: usize, c: usize, x: usize, y: usize, w: usize, h: usize) -> f32 {
         batch[((n * 3 + c) * h + y) * w + x]
     }
@@ -157,20 +166,7 @@ mod tests {
             }
         }
         let mut crops = CropBatch::new(8, 4);
-        let regions = [
-            Region {
-                left: 0,
-                top: 0,
-                width: 16,
-                height: 16,
-            },
-            Region {
-                left: 40,
-                top: 40,
-                width: 20,
-                height: 10,
-            },
-        ];
+        let regions = [region(0, 0, 16, 16), region(40, 40, 20, 10)];
         let batch = crops.cut(&frame, &regions).expect("crops");
         assert_eq!(batch.len(), 2 * 3 * 8 * 4);
         assert!(
@@ -192,12 +188,7 @@ mod tests {
     fn past_the_edge_is_grey_and_inside_is_the_frame() {
         let frame = RgbImage::from_pixel(200, 100, image::Rgb([255, 255, 255]));
         let mut crops = CropBatch::new(46, 46);
-        let region = Region {
-            left: -13,
-            top: 17,
-            width: 46,
-            height: 46,
-        };
+        let region = region(-13, 17, 46, 46);
         let batch = crops.cut(&frame, &[region]).expect("crop");
         let grey = f32::from(GREY[0]) / 255.0;
         assert!((at(batch, 0, 0, 0, 20, 46, 46) - grey).abs() < 1e-6);
@@ -215,12 +206,7 @@ mod tests {
             }
         }
         let mut crops = CropBatch::new(10, 10);
-        let region = Region {
-            left: 0,
-            top: 0,
-            width: 40,
-            height: 40,
-        };
+        let region = region(0, 0, 40, 40);
         let batch = crops.cut(&frame, &[region]).expect("crop");
         let row: f32 = (0..10).map(|x| at(batch, 0, 0, x, 5, 10, 10)).sum();
         assert!((row - 0.5).abs() < 0.05, "row energy {row}");
