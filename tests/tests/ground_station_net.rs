@@ -113,17 +113,26 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
     assert_eq!(got.uav, uav);
 
     let key = Keys::new(fleet.clone()).uav(&uav, Topic::Tracks);
-    session
-        .put(
-            key.clone(),
-            br#"{"schema": 9, "kind": "tracks", "body": {}}"#.to_vec(),
-        )
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let error = wait_for(&link.events, Duration::from_secs(5), |e| match e {
-        NetEvent::Rejected { key: k, error } if k == key => Some(error),
-        _ => None,
-    })?;
+    // Put until the tracks subscription has reached us too: its declaration
+    // travels apart from the poses' (a single put raced it under load).
+    let mut error = None;
+    for _ in 0..50 {
+        session
+            .put(
+                key.clone(),
+                br#"{"schema": 9, "kind": "tracks", "body": {}}"#.to_vec(),
+            )
+            .await
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        if let Ok(e) = wait_for(&link.events, Duration::from_millis(100), |e| match e {
+            NetEvent::Rejected { key: k, error } if k == key => Some(error),
+            _ => None,
+        }) {
+            error = Some(e);
+            break;
+        }
+    }
+    let error = error.ok_or_else(|| anyhow::anyhow!("no rejection reached the ground station"))?;
     assert!(error.contains("schema version 9"), "{error}");
 
     // A correction from the ground station reaches the edge.
