@@ -11,7 +11,7 @@ use crate::flight::{Flight, StraightFlight};
 use crate::oracle::{OracleDetector, OracleParams};
 use crate::quadrotor::{QuadParams, fly};
 use crate::render::{Conditions, FrameBuffers, Renderer};
-use crate::truth::{FrameTruth, frame_truth, outlines};
+use crate::truth::{FrameTruth, Outline, frame_truth, outlines};
 use crate::waypoints::{FlightPlan, PlanError, random_crossing};
 use crate::world::World;
 use crate::world::WorldParams;
@@ -145,7 +145,7 @@ impl Scenario {
         self.truth_with(&outlines(&self.world), seq)
     }
 
-    fn truth_with(&self, outlines: &[Vec<Point3<f64>>], seq: u64) -> FrameTruth {
+    fn truth_with(&self, outlines: &[Outline], seq: u64) -> FrameTruth {
         let t = seq as f64 / self.fps;
         frame_truth(
             &self.camera,

@@ -16,6 +16,10 @@ pub struct TruthBox {
     pub bbox: PixelBox,
     /// The image edge cuts the box.
     pub truncated: bool,
+    /// Share of the tower's drawn structure (member length times width)
+    /// inside the image: 1 unless `truncated`. A tower cut down to an arm tip
+    /// keeps a box but is barely there to see.
+    pub in_frame: f64,
     /// Horizontal distance from the camera to the tower axis.
     pub distance_m: f64,
     /// Share of the box hidden behind nearer objects' boxes, 0..1.
@@ -32,31 +36,56 @@ pub struct FrameTruth {
     pub distractors: Vec<PixelBox>,
 }
 
-/// Towers farther than this are never labelled: a few pixels tall at best.
-pub const MAX_RANGE_M: f64 = 900.0;
-/// Boxes shorter than this are not labelled.
+/// Boxes shorter than this are not labelled. There is no range limit: the
+/// renderer draws every tower, and a 50 m tower 1 km off is still 45 px tall.
 pub const MIN_BOX_HEIGHT_PX: f64 = 4.0;
+/// Towers with less of their structure than this inside the image are not
+/// labelled: an arm tip at the frame's edge is not a tower anyone could find.
+pub const MIN_IN_FRAME: f64 = 0.25;
 
 /// The truth box of one tower, or `None` if it is not in view.
 pub fn truth_box(camera: &PinholeCamera, pose: &Pose, tower: &SimTower) -> Option<TruthBox> {
     truth_box_with(camera, pose, tower, &outline(tower))
 }
 
-/// A tower's distinct model points in the world frame: all a box must enclose.
-pub fn outline(tower: &SimTower) -> Vec<Point3<f64>> {
-    let world_from_tower = tower.world_from_tower();
-    let mut points: Vec<Point3<f64>> = Vec::new();
-    for v in tower.model().vertices() {
-        let p = world_from_tower * v;
-        if !points.iter().any(|q| (q - p).norm_squared() < 1e-12) {
-            points.push(p);
-        }
-    }
-    points
+/// What truth needs of one tower's 3-D model, in the world frame: computed
+/// once per world, used every frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outline {
+    /// Distinct member end points: all a box must enclose.
+    pub vertices: Vec<Point3<f64>>,
+    /// Points along every member, each weighted by the ink it stands for
+    /// (member width times the length it samples): how much of the drawn
+    /// tower a part of the image holds.
+    pub ink: Vec<(Point3<f64>, f64)>,
 }
 
-/// Every tower's outline, in world order: computed once per world, used every frame.
-pub fn outlines(world: &World) -> Vec<Vec<Point3<f64>>> {
+/// Samples per member for `Outline::ink`.
+const INK_SAMPLES: usize = 6;
+
+pub fn outline(tower: &SimTower) -> Outline {
+    let world_from_tower = tower.world_from_tower();
+    let model = tower.model();
+    let mut vertices: Vec<Point3<f64>> = Vec::new();
+    for v in model.vertices() {
+        let p = world_from_tower * v;
+        if !vertices.iter().any(|q| (q - p).norm_squared() < 1e-12) {
+            vertices.push(p);
+        }
+    }
+    let mut ink = Vec::with_capacity(model.members.len() * INK_SAMPLES);
+    for m in &model.members {
+        let weight = m.kind.width_m() * (m.b - m.a).norm() / INK_SAMPLES as f64;
+        for i in 0..INK_SAMPLES {
+            let s = (i as f64 + 0.5) / INK_SAMPLES as f64;
+            ink.push((world_from_tower * (m.a + (m.b - m.a) * s), weight));
+        }
+    }
+    Outline { vertices, ink }
+}
+
+/// Every tower's outline, in world order.
+pub fn outlines(world: &World) -> Vec<Outline> {
     world.towers.iter().map(outline).collect()
 }
 
@@ -65,21 +94,18 @@ pub fn truth_box_with(
     camera: &PinholeCamera,
     pose: &Pose,
     tower: &SimTower,
-    outline_in_world: &[Point3<f64>],
+    outline: &Outline,
 ) -> Option<TruthBox> {
     let camera_from_world = camera.world_from_camera(pose).inverse();
     let foot = tower.foot_in_world;
     let top = foot + Vector3::new(0.0, 0.0, tower.height_m);
     let horizontal = (foot - pose.position_in_world).xy().norm();
-    if horizontal > MAX_RANGE_M {
-        return None;
-    }
     let project = |p: Point3<f64>| camera.project(&(camera_from_world * p));
     let (top_px, foot_px) = (project(top)?, project(foot)?);
     // Horizontal extent: every point of the 3-D model, cross-arms included.
     let mut left = f64::INFINITY;
     let mut right = f64::NEG_INFINITY;
-    for vertex in outline_in_world {
+    for vertex in &outline.vertices {
         let px = project(*vertex)?;
         left = left.min(px.x);
         right = right.max(px.x);
@@ -91,11 +117,31 @@ pub fn truth_box_with(
     if bbox.width() <= 0.0 || bbox.height() < MIN_BOX_HEIGHT_PX {
         return None;
     }
+    let truncated = bbox != full;
+    let in_frame = if truncated {
+        let inside = |p: &Point3<f64>| {
+            project(*p).is_some_and(|px| (0.0..w).contains(&px.x) && (0.0..h).contains(&px.y))
+        };
+        let total: f64 = outline.ink.iter().map(|(_, weight)| weight).sum();
+        let seen: f64 = outline
+            .ink
+            .iter()
+            .filter(|(p, _)| inside(p))
+            .map(|(_, weight)| weight)
+            .sum();
+        seen / total.max(f64::MIN_POSITIVE)
+    } else {
+        1.0
+    };
+    if in_frame < MIN_IN_FRAME {
+        return None;
+    }
     Some(TruthBox {
         tower_id: tower.id.clone(),
         tower_type: tower.tower_type,
         bbox,
-        truncated: bbox != full,
+        truncated,
+        in_frame,
         distance_m: horizontal,
         occluded: 0.0,
     })
@@ -152,7 +198,7 @@ fn mark_occlusion(boxes: &mut [TruthBox], blockers: &[(PixelBox, f64)]) {
 pub fn frame_truth(
     camera: &PinholeCamera,
     world: &World,
-    outlines: &[Vec<Point3<f64>>],
+    outlines: &[Outline],
     seq: u64,
     time_s: f64,
     pose: Pose,
@@ -173,7 +219,7 @@ pub fn frame_truth(
         .filter_map(|d| {
             let (b, dist) = distractor_box(camera, &pose, d)?;
             let clipped = b.clipped(w, h);
-            (dist <= MAX_RANGE_M && clipped.width() > 0.0 && clipped.height() >= MIN_BOX_HEIGHT_PX)
+            (clipped.width() > 0.0 && clipped.height() >= MIN_BOX_HEIGHT_PX)
                 .then_some((d, clipped, dist))
         })
         .collect();
@@ -230,10 +276,13 @@ mod tests {
     }
 
     #[test]
-    fn towers_behind_or_beyond_range_are_not_labelled() {
+    fn towers_behind_or_too_small_to_see_are_not_labelled() {
         let (camera, pose, tower) = tower_ahead(-100.0);
         assert!(truth_box(&camera, &pose, &tower).is_none());
-        let (camera, pose, tower) = tower_ahead(MAX_RANGE_M + 1.0);
+        // 32 m at 1.2 km is still a tower to find; at 10 km it is 3 px.
+        let (camera, pose, tower) = tower_ahead(1200.0);
+        assert!(truth_box(&camera, &pose, &tower).is_some());
+        let (camera, pose, tower) = tower_ahead(10_000.0);
         assert!(truth_box(&camera, &pose, &tower).is_none());
     }
 
@@ -263,5 +312,28 @@ mod tests {
         let b = truth_box(&camera, &pose, &tower).expect("visible");
         assert!(b.truncated);
         assert!(b.bbox.bottom <= f64::from(camera.intrinsics.height));
+        assert!(0.0 < b.in_frame && b.in_frame < 1.0, "{}", b.in_frame);
+    }
+
+    #[test]
+    fn a_tower_leaving_the_side_of_the_frame_keeps_less_and_less_of_itself_in_it() {
+        let (camera, pose, tower) = tower_ahead(200.0);
+        let mut shares = Vec::new();
+        for step in 0..400 {
+            let moved = SimTower {
+                foot_in_world: Point3::new(200.0, f64::from(step) * 0.5, 0.0),
+                ..tower.clone()
+            };
+            match truth_box(&camera, &pose, &moved) {
+                Some(b) => shares.push(b.in_frame),
+                None if shares.is_empty() => panic!("the tower ahead is in view"),
+                None => break,
+            }
+        }
+        assert_eq!(shares[0], 1.0);
+        assert!(shares.windows(2).all(|w| w[1] <= w[0] + 1e-9), "{shares:?}");
+        // Labels stop when a quarter of the tower is left, not at the arm tip.
+        let last = shares.last().copied().unwrap_or(1.0);
+        assert!((MIN_IN_FRAME..MIN_IN_FRAME + 0.1).contains(&last), "{last}");
     }
 }
