@@ -25,6 +25,9 @@ pub struct OracleParams {
     /// Boxes shorter than this are never reported; up to twice this the miss
     /// chance ramps from 1 down to `miss_probability`.
     pub min_height_px: f64,
+    /// Towers farther than this are never reported: the detector range the
+    /// oracle's replays and targets were set with.
+    pub max_range_m: f64,
     /// Chance per frame of one false box anywhere (clutter, sky, ground).
     pub false_positive_rate: f64,
     /// Chance per frame and distractor in view (pole, tree, building) that it is taken for a tower.
@@ -41,6 +44,7 @@ impl Default for OracleParams {
             miss_probability: 0.03,
             occlusion_miss: 0.5,
             min_height_px: 12.0,
+            max_range_m: 900.0,
             false_positive_rate: 0.02,
             distractor_false_positive: 0.01,
             type_confusion: 0.01,
@@ -90,7 +94,10 @@ impl OracleDetector {
         let mut out = Vec::with_capacity(truth.boxes.len() + 1);
         for b in &truth.boxes {
             let h = b.bbox.height();
-            if h < p.min_height_px || self.rng.random_bool(p.miss_chance(h, b.occluded)) {
+            if h < p.min_height_px
+                || b.distance_m > p.max_range_m
+                || self.rng.random_bool(p.miss_chance(h, b.occluded))
+            {
                 continue;
             }
             let sigma = p.edge_sigma_px.max(0.0) * (1.0 + p.small_box_px.max(0.0) / h.max(1.0));
@@ -180,10 +187,30 @@ mod tests {
             truth
                 .boxes
                 .iter()
-                .filter(|b| b.bbox.height() >= params.min_height_px)
+                .filter(|b| b.bbox.height() >= params.min_height_px
+                    && b.distance_m <= params.max_range_m)
                 .count()
                 + 1
         );
+    }
+
+    #[test]
+    fn towers_beyond_range_are_never_reported() {
+        let truth = Scenario::seed(1).truth(0);
+        let params = OracleParams {
+            miss_probability: 0.0,
+            min_height_px: 0.0,
+            false_positive_rate: 0.0,
+            ..OracleParams::skeleton()
+        };
+        let far = truth
+            .boxes
+            .iter()
+            .filter(|b| b.distance_m > params.max_range_m)
+            .count();
+        assert!(far > 0, "the seed field has towers past the oracle's range");
+        let dets = OracleDetector::new(params, 1).detect(&truth, 1280.0, 720.0);
+        assert_eq!(dets.len(), truth.boxes.len() - far);
     }
 
     #[test]
@@ -195,6 +222,7 @@ mod tests {
             miss_probability: 0.0,
             min_height_px: 0.0,
             false_positive_rate: 0.0,
+            max_range_m: f64::INFINITY,
             ..OracleParams::skeleton()
         };
         let dets = OracleDetector::new(params, 1).detect(&truth, 1280.0, 720.0);

@@ -26,6 +26,13 @@ pub struct TruthBox {
     pub occluded: f64,
 }
 
+impl TruthBox {
+    /// Whether a detector is asked to find it (`MIN_IN_FRAME`).
+    pub fn labelled(&self) -> bool {
+        self.in_frame >= MIN_IN_FRAME
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameTruth {
     pub seq: u64,
@@ -39,8 +46,13 @@ pub struct FrameTruth {
 /// Boxes shorter than this are not labelled. There is no range limit: the
 /// renderer draws every tower, and a 50 m tower 1 km off is still 45 px tall.
 pub const MIN_BOX_HEIGHT_PX: f64 = 4.0;
+/// Distractors (trees, buildings, poles, about 10 m tall) farther than this
+/// are a few pixels at most: neither false-positive bait nor blockers.
+pub const DISTRACTOR_RANGE_M: f64 = 900.0;
 /// Towers with less of their structure than this inside the image are not
-/// labelled: an arm tip at the frame's edge is not a tower anyone could find.
+/// labelled for a detector: an arm tip at the frame's edge is not a tower
+/// anyone could find. The YOLO dataset leaves them out and the detector's
+/// evaluation ignores them; truth keeps them for the oracle and the trackers.
 pub const MIN_IN_FRAME: f64 = 0.25;
 
 /// The truth box of one tower, or `None` if it is not in view.
@@ -133,9 +145,6 @@ pub fn truth_box_with(
     } else {
         1.0
     };
-    if in_frame < MIN_IN_FRAME {
-        return None;
-    }
     Some(TruthBox {
         tower_id: tower.id.clone(),
         tower_type: tower.tower_type,
@@ -219,7 +228,9 @@ pub fn frame_truth(
         .filter_map(|d| {
             let (b, dist) = distractor_box(camera, &pose, d)?;
             let clipped = b.clipped(w, h);
-            (clipped.width() > 0.0 && clipped.height() >= MIN_BOX_HEIGHT_PX)
+            (dist <= DISTRACTOR_RANGE_M
+                && clipped.width() > 0.0
+                && clipped.height() >= MIN_BOX_HEIGHT_PX)
                 .then_some((d, clipped, dist))
         })
         .collect();
@@ -318,22 +329,25 @@ mod tests {
     #[test]
     fn a_tower_leaving_the_side_of_the_frame_keeps_less_and_less_of_itself_in_it() {
         let (camera, pose, tower) = tower_ahead(200.0);
-        let mut shares = Vec::new();
+        let mut boxes = Vec::new();
         for step in 0..400 {
             let moved = SimTower {
                 foot_in_world: Point3::new(200.0, f64::from(step) * 0.5, 0.0),
                 ..tower.clone()
             };
             match truth_box(&camera, &pose, &moved) {
-                Some(b) => shares.push(b.in_frame),
-                None if shares.is_empty() => panic!("the tower ahead is in view"),
+                Some(b) => boxes.push(b),
+                None if boxes.is_empty() => panic!("the tower ahead is in view"),
                 None => break,
             }
         }
+        let shares: Vec<f64> = boxes.iter().map(|b| b.in_frame).collect();
         assert_eq!(shares[0], 1.0);
         assert!(shares.windows(2).all(|w| w[1] <= w[0] + 1e-9), "{shares:?}");
-        // Labels stop when a quarter of the tower is left, not at the arm tip.
-        let last = shares.last().copied().unwrap_or(1.0);
-        assert!((MIN_IN_FRAME..MIN_IN_FRAME + 0.1).contains(&last), "{last}");
+        // The last boxes hold no more than an arm tip, and are not labelled.
+        let last = boxes.last().expect("boxes");
+        assert!(last.in_frame < 0.1, "{}", last.in_frame);
+        assert!(!last.labelled());
+        assert!(boxes[0].labelled());
     }
 }

@@ -168,10 +168,14 @@ pub fn evaluate(
                     score: d.score as f32,
                 })
                 .collect();
+            // Towers with barely any structure in frame are in no table.
+            let unlabelled: Vec<bool> = truth.boxes.iter().map(|b| !b.labelled()).collect();
+            let (labels, scored) = restrict(&labels, &scored, 0.0, &unlabelled);
             all.add_image(&labels, &scored);
             let hidden: Vec<bool> = truth
                 .boxes
                 .iter()
+                .filter(|b| b.labelled())
                 .map(|b| b.truncated || b.occluded >= HIDDEN_SHARE)
                 .collect();
             let (v_labels, v_scored) = restrict(&labels, &scored, TARGET_MIN_HEIGHT_PX, &hidden);
@@ -304,7 +308,11 @@ pub fn write_all(
         options.worlds,
         options.seed
     );
-    println!("All towers:\n{}\n", table(&all));
+    println!(
+        "All towers (those with under {:.0} % of their structure in frame are in no table):\n{}\n",
+        100.0 * towernav_sim::truth::MIN_IN_FRAME,
+        table(&all)
+    );
     println!(
         "Towers taller than {TARGET_MIN_HEIGHT_PX} px (the target):\n{}\n",
         table(&tall)

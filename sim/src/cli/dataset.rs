@@ -107,7 +107,7 @@ pub fn write_dataset(out: &Path, options: &DatasetOptions) -> anyhow::Result<()>
                         .with_context(|| format!("creating {}", label.display()))?,
                 );
                 let (iw, ih) = (f64::from(k.width), f64::from(k.height));
-                for b in &truth.boxes {
+                for b in truth.boxes.iter().filter(|b| b.labelled()) {
                     writeln!(
                         file,
                         "{} {:.6} {:.6} {:.6} {:.6}",
