@@ -54,6 +54,10 @@ enum Command {
         frames_per_world: u64,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Types each box may be scored under, best first: 1 is what the
+        /// pipeline gets; 4 scores mAP as Ultralytics validates (`multi_label`).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=4))]
+        types_per_box: u8,
         /// Folder for detector-eval.json.
         #[arg(long, default_value = "target/detector-eval")]
         out: PathBuf,
@@ -331,6 +335,7 @@ fn main() -> anyhow::Result<()> {
         worlds,
         frames_per_world,
         seed,
+        types_per_box,
         out,
     } = &cli.command
     {
@@ -344,6 +349,7 @@ fn main() -> anyhow::Result<()> {
         // as Ultralytics' validation does; P and R are read at --min-score.
         let mut detector_options = detector.options();
         detector_options.post.min_score = 0.001;
+        detector_options.post.types_per_box = usize::from(*types_per_box);
         let section = detector.section();
         return towernav_edge::shell::detector_eval_cmd::write_all(
             &section.model,

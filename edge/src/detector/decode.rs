@@ -71,12 +71,15 @@ impl ScoreMode {
 }
 
 /// Candidates above `min_score` from a raw output (row-major `data` of `shape`).
+/// In `BestClass` mode each box may come back under up to `types_per_box`
+/// classes, best first (Ultralytics' `multi_label` when it is every class).
 pub fn decode(
     data: &[f32],
     shape: &[usize],
     classes: usize,
     min_score: f32,
     mode: ScoreMode,
+    types_per_box: usize,
 ) -> Result<Vec<RawDetection>, LayoutError> {
     let kind = layout(shape, classes)?;
     let mut out = Vec::new();
@@ -96,14 +99,19 @@ pub fn decode(
                 if objectness < min_score {
                     continue;
                 }
+                let bbox = cxcywh(row[0], row[1], row[2], row[3]);
                 let (class, best) = mode.pick(row[5..].iter().copied());
-                let score = objectness * best;
-                if score >= min_score {
-                    out.push(RawDetection {
-                        bbox: cxcywh(row[0], row[1], row[2], row[3]),
-                        class,
-                        score,
-                    });
+                let picks = std::iter::once((class, best)).chain(runners_up(
+                    mode,
+                    &row[5..],
+                    class,
+                    types_per_box,
+                ));
+                for (class, p) in picks {
+                    let score = objectness * p;
+                    if score >= min_score {
+                        out.push(RawDetection { bbox, class, score });
+                    }
                 }
             }
         }
@@ -111,18 +119,47 @@ pub fn decode(
             let n = shape[2];
             let at = |r: usize, i: usize| data[r * n + i];
             for i in 0..n {
-                let (class, score) = mode.pick((0..classes).map(|c| at(4 + c, i)));
-                if score >= min_score {
-                    out.push(RawDetection {
-                        bbox: cxcywh(at(0, i), at(1, i), at(2, i), at(3, i)),
-                        class,
-                        score,
-                    });
+                let (class, best) = mode.pick((0..classes).map(|c| at(4 + c, i)));
+                if best < min_score {
+                    continue;
+                }
+                let bbox = cxcywh(at(0, i), at(1, i), at(2, i), at(3, i));
+                let scores: Vec<f32> = (0..classes).map(|c| at(4 + c, i)).collect();
+                let picks = std::iter::once((class, best)).chain(runners_up(
+                    mode,
+                    &scores,
+                    class,
+                    types_per_box,
+                ));
+                for (class, score) in picks.filter(|(_, p)| *p >= min_score) {
+                    out.push(RawDetection { bbox, class, score });
                 }
             }
         }
     }
     Ok(out)
+}
+
+/// The classes after the best, best first, up to `types_per_box` in all; none
+/// in `AnyType` mode, where the score is not one class's.
+fn runners_up(
+    mode: ScoreMode,
+    scores: &[f32],
+    best: usize,
+    types_per_box: usize,
+) -> Vec<(usize, f32)> {
+    if mode == ScoreMode::AnyType || types_per_box < 2 {
+        return Vec::new();
+    }
+    let mut rest: Vec<(usize, f32)> = scores
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(c, _)| *c != best)
+        .collect();
+    rest.sort_by(|a, b| b.1.total_cmp(&a.1));
+    rest.truncate(types_per_box - 1);
+    rest
 }
 
 fn best_class(scores: impl Iterator<Item = f32>) -> (usize, f32) {
@@ -174,7 +211,7 @@ mod tests {
             100.0, 200.0, 20.0, 80.0, 0.9, 0.1, 0.8, 0.05, 0.05, //
             300.0, 200.0, 20.0, 80.0, 0.2, 0.9, 0.0, 0.0, 0.0,
         ];
-        let dets = decode(&data, &[1, 2, 9], 4, 0.25, ScoreMode::BestClass).expect("v5");
+        let dets = decode(&data, &[1, 2, 9], 4, 0.25, ScoreMode::BestClass, 1).expect("v5");
         assert_eq!(dets.len(), 1, "0.2 x 0.9 is under the threshold");
         assert_eq!(dets[0].class, 1);
         assert!((dets[0].score - 0.72).abs() < 1e-6);
@@ -194,9 +231,29 @@ mod tests {
             0.9, 0.1, 0.0, // C
             0.0, 0.2, 0.0, // D
         ];
-        let dets = decode(&data, &[1, 8, 3], 4, 0.25, ScoreMode::BestClass).expect("v8");
+        let dets = decode(&data, &[1, 8, 3], 4, 0.25, ScoreMode::BestClass, 1).expect("v8");
         assert_eq!(dets.iter().map(|d| d.class).collect::<Vec<_>>(), [2, 1]);
         assert_eq!(dets[1].bbox.center_x(), 500.0);
+    }
+
+    #[test]
+    fn a_box_comes_back_under_its_runner_up_types_when_asked() {
+        // v5, one candidate: obj 0.9, classes 0.1 / 0.6 / 0.3 / 0.0.
+        let data = [100.0, 200.0, 20.0, 80.0, 0.9, 0.1, 0.6, 0.3, 0.0];
+        let classes_of = |k: usize| -> Vec<usize> {
+            decode(&data, &[1, 1, 9], 4, 0.05, ScoreMode::BestClass, k)
+                .expect("v5")
+                .iter()
+                .map(|d| d.class)
+                .collect()
+        };
+        assert_eq!(classes_of(1), [1]);
+        assert_eq!(classes_of(2), [1, 2]);
+        // A is 0.09, D is 0: only those above the threshold.
+        assert_eq!(classes_of(4), [1, 2, 0]);
+        // In any-type mode the score is the tower's, not a type's: one box.
+        let any = decode(&data, &[1, 1, 9], 4, 0.05, ScoreMode::AnyType, 4).expect("v5");
+        assert_eq!(any.len(), 1);
     }
 
     #[test]
@@ -207,12 +264,12 @@ mod tests {
             0.0, 0.0, 0.2, 0.15, // A..D
         ];
         assert!(
-            decode(&data, &[1, 8, 1], 4, 0.25, ScoreMode::BestClass)
+            decode(&data, &[1, 8, 1], 4, 0.25, ScoreMode::BestClass, 1)
                 .expect("v8")
                 .is_empty(),
             "no one type reaches 0.25"
         );
-        let dets = decode(&data, &[1, 8, 1], 4, 0.25, ScoreMode::AnyType).expect("v8");
+        let dets = decode(&data, &[1, 8, 1], 4, 0.25, ScoreMode::AnyType, 1).expect("v8");
         assert_eq!(dets.len(), 1);
         assert_eq!(dets[0].class, 2);
         assert!((dets[0].score - 0.35).abs() < 1e-6);

@@ -23,6 +23,11 @@ pub struct PostprocessParams {
     pub max_detections: usize,
     /// Best-class score, or any-type score when a second stage names types.
     pub score: ScoreMode,
+    /// Types a box may be reported under, best first: 1 for the pipeline (one
+    /// tower, one type). Scoring mAP the way Ultralytics validates
+    /// (`multi_label`) asks for every type, so a box whose second guess is
+    /// right still ranks.
+    pub types_per_box: usize,
 }
 
 impl Default for PostprocessParams {
@@ -33,6 +38,7 @@ impl Default for PostprocessParams {
             min_height_px: 4.0,
             max_detections: 300,
             score: ScoreMode::BestClass,
+            types_per_box: 1,
         }
     }
 }
@@ -46,7 +52,14 @@ pub fn postprocess(
     frame_size: (u32, u32),
     params: &PostprocessParams,
 ) -> Result<Vec<Detection>, LayoutError> {
-    let raw = decode(output, shape, classes.len(), params.min_score, params.score)?;
+    let raw = decode(
+        output,
+        shape,
+        classes.len(),
+        params.min_score,
+        params.score,
+        params.types_per_box,
+    )?;
     let (w, h) = (f64::from(frame_size.0), f64::from(frame_size.1));
     let kept = match params.score {
         ScoreMode::BestClass => nms(raw, params.nms_iou),

@@ -30,7 +30,8 @@ pub fn crop_square(b: &PixelBox) -> Region {
     }
 }
 
-/// Give each box the classifier's type. `probs` holds one row of class
+/// Give each box the classifier's type (its `types_per_box` likeliest, for
+/// scoring mAP as Ultralytics does). `probs` holds one row of class
 /// probabilities per box, in `classes`' order. The score becomes the
 /// detector's (how sure it is of a tower) times the type's probability, and
 /// boxes the new types made duplicates of one another are suppressed.
@@ -39,18 +40,22 @@ pub fn retype(
     probs: &[f32],
     classes: &ClassMap,
     nms_iou: f64,
+    types_per_box: usize,
 ) -> Vec<Detection> {
     let k = classes.len();
     let raw: Vec<RawDetection> = dets
         .iter()
         .zip(probs.chunks_exact(k))
-        .filter_map(|(d, p)| {
-            let (class, prob) = p.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
-            let tower_type = classes.tower_type(class)?;
-            Some(RawDetection {
-                bbox: d.bbox,
-                class: tower_type.index(),
-                score: (d.score as f32) * prob,
+        .flat_map(|(d, p)| {
+            let mut ranked: Vec<(usize, f32)> = p.iter().copied().enumerate().collect();
+            ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+            ranked.truncate(types_per_box.max(1));
+            ranked.into_iter().filter_map(|(class, prob)| {
+                Some(RawDetection {
+                    bbox: d.bbox,
+                    class: classes.tower_type(class)?.index(),
+                    score: (d.score as f32) * prob,
+                })
             })
         })
         .collect();
@@ -105,11 +110,28 @@ mod tests {
             },
         ];
         let probs = [0.0, 0.9, 0.1, 0.0, 0.1, 0.7, 0.2, 0.0];
-        let out = retype(&dets, &probs, &classes(), 0.5);
+        let out = retype(&dets, &probs, &classes(), 0.5, 1);
         assert_eq!(out.len(), 1, "{out:?}");
         assert_eq!(out[0].tower_type, TowerType::B);
         assert!((out[0].score - 0.72).abs() < 1e-6);
         assert_eq!(out[0].bbox, b);
+    }
+
+    #[test]
+    fn a_box_may_carry_its_likelier_types_each_with_its_own_score() {
+        let b = PixelBox::new(100.0, 100.0, 120.0, 180.0);
+        let dets = [Detection {
+            bbox: b,
+            tower_type: TowerType::A,
+            score: 0.5,
+        }];
+        let probs = [0.1, 0.6, 0.3, 0.0];
+        let out = retype(&dets, &probs, &classes(), 0.5, 2);
+        let got: Vec<(TowerType, f64)> = out.iter().map(|d| (d.tower_type, d.score)).collect();
+        assert_eq!(got.len(), 2, "{got:?}");
+        assert_eq!((got[0].0, got[1].0), (TowerType::B, TowerType::C));
+        assert!((got[0].1 - 0.3).abs() < 1e-6 && (got[1].1 - 0.15).abs() < 1e-6);
+        assert!(out.iter().all(|d| d.bbox == b));
     }
 
     proptest! {

@@ -43,6 +43,8 @@ pub struct DetectorEval {
     /// The type classifier, when one named the boxes' types.
     pub type_model: Option<String>,
     pub input: (u32, u32),
+    /// Types each box was scored under (1: as the pipeline gets them).
+    pub types_per_box: usize,
     pub images: usize,
     pub all: MetricsJson,
     pub taller_than_40px: MetricsJson,
@@ -207,6 +209,7 @@ pub fn evaluate(
         model: model.display().to_string(),
         type_model: type_model.map(|p| p.display().to_string()),
         input: (info.input_width, info.input_height),
+        types_per_box: detector_options.post.types_per_box,
         images: latencies.len(),
         all: MetricsJson::from(&all),
         taller_than_40px: MetricsJson::from(&tall),
@@ -228,11 +231,19 @@ pub fn evaluate(
     })
 }
 
-/// Labels and boxes with their types erased, for the class-agnostic score.
+/// Labels and boxes with their types erased, for the class-agnostic score; a
+/// box scored under several types counts once, at its best.
 fn one_type(labels: &[Labelled], dets: &[Scored]) -> (Vec<Labelled>, Vec<Scored>) {
+    let mut boxes: Vec<Scored> = Vec::with_capacity(dets.len());
+    for d in dets {
+        match boxes.iter_mut().find(|b| b.bbox == d.bbox) {
+            Some(b) => b.score = b.score.max(d.score),
+            None => boxes.push(Scored { class: 0, ..*d }),
+        }
+    }
     (
         labels.iter().map(|l| Labelled { class: 0, ..*l }).collect(),
-        dets.iter().map(|d| Scored { class: 0, ..*d }).collect(),
+        boxes,
     )
 }
 
@@ -299,11 +310,12 @@ pub fn write_all(
         confusion,
     } = evaluate(model, type_model, detector_options, options)?;
     println!(
-        "Detector {} ({}x{} input), types from {}, on {} frames of {} held-out worlds (seed {})\n",
+        "Detector {} ({}x{} input), types from {} ({} per box), on {} frames of {} held-out worlds (seed {})\n",
         eval.model,
         eval.input.0,
         eval.input.1,
         eval.type_model.as_deref().unwrap_or("the detector"),
+        eval.types_per_box,
         eval.images,
         options.worlds,
         options.seed

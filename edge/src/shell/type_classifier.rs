@@ -122,10 +122,11 @@ impl TypeClassifier {
         frame: &RgbImage,
         dets: &[Detection],
         nms_iou: f64,
+        types_per_box: usize,
     ) -> Result<Vec<Detection>, OnnxError> {
         let dets = &dets[..dets.len().min(MAX_TYPED)];
         let boxes: Vec<PixelBox> = dets.iter().map(|d| d.bbox).collect();
         let probs = self.probabilities(frame, &boxes)?;
-        Ok(retype(dets, &probs, &self.classes, nms_iou))
+        Ok(retype(dets, &probs, &self.classes, nms_iou, types_per_box))
     }
 }

@@ -172,7 +172,7 @@ impl YoloDetector {
         )
         .map_err(|e| fail(e.to_string()))?;
         match &mut self.types {
-            Some(types) => types.retype(frame, &dets, self.post.nms_iou),
+            Some(types) => types.retype(frame, &dets, self.post.nms_iou, self.post.types_per_box),
             None => Ok(dets),
         }
     }
