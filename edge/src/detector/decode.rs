@@ -100,13 +100,14 @@ pub fn decode(
                     continue;
                 }
                 let bbox = cxcywh(row[0], row[1], row[2], row[3]);
-                let (class, best) = mode.pick(row[5..].iter().copied());
-                let picks = std::iter::once((class, best)).chain(runners_up(
-                    mode,
-                    &row[5..],
-                    class,
-                    types_per_box,
-                ));
+                let scores = || row[5..].iter().copied();
+                let (class, best) = mode.pick(scores());
+                let more = if mode == ScoreMode::BestClass {
+                    types_per_box
+                } else {
+                    1
+                };
+                let picks = std::iter::once((class, best)).chain(runners_up(scores(), class, more));
                 for (class, p) in picks {
                     let score = objectness * p;
                     if score >= min_score {
@@ -119,18 +120,18 @@ pub fn decode(
             let n = shape[2];
             let at = |r: usize, i: usize| data[r * n + i];
             for i in 0..n {
-                let (class, best) = mode.pick((0..classes).map(|c| at(4 + c, i)));
+                let scores = || (0..classes).map(|c| at(4 + c, i));
+                let (class, best) = mode.pick(scores());
                 if best < min_score {
                     continue;
                 }
                 let bbox = cxcywh(at(0, i), at(1, i), at(2, i), at(3, i));
-                let scores: Vec<f32> = (0..classes).map(|c| at(4 + c, i)).collect();
-                let picks = std::iter::once((class, best)).chain(runners_up(
-                    mode,
-                    &scores,
-                    class,
-                    types_per_box,
-                ));
+                let more = if mode == ScoreMode::BestClass {
+                    types_per_box
+                } else {
+                    1
+                };
+                let picks = std::iter::once((class, best)).chain(runners_up(scores(), class, more));
                 for (class, score) in picks.filter(|(_, p)| *p >= min_score) {
                     out.push(RawDetection { bbox, class, score });
                 }
@@ -140,29 +141,24 @@ pub fn decode(
     Ok(out)
 }
 
-/// The classes after the best, best first, up to `types_per_box` in all; none
-/// in `AnyType` mode, where the score is not one class's.
-fn runners_up(
-    mode: ScoreMode,
-    scores: &[f32],
+/// The classes after `best`, best first, up to `types_per_box` in all. Empty,
+/// and allocation-free, for the pipeline's one type per box. In `AnyType` mode
+/// callers ask for one: the score is the tower's, not one class's.
+pub(super) fn runners_up(
+    scores: impl Iterator<Item = f32>,
     best: usize,
     types_per_box: usize,
 ) -> Vec<(usize, f32)> {
-    if mode == ScoreMode::AnyType || types_per_box < 2 {
+    if types_per_box < 2 {
         return Vec::new();
     }
-    let mut rest: Vec<(usize, f32)> = scores
-        .iter()
-        .copied()
-        .enumerate()
-        .filter(|(c, _)| *c != best)
-        .collect();
+    let mut rest: Vec<(usize, f32)> = scores.enumerate().filter(|(c, _)| *c != best).collect();
     rest.sort_by(|a, b| b.1.total_cmp(&a.1));
     rest.truncate(types_per_box - 1);
     rest
 }
 
-fn best_class(scores: impl Iterator<Item = f32>) -> (usize, f32) {
+pub(super) fn best_class(scores: impl Iterator<Item = f32>) -> (usize, f32) {
     scores
         .enumerate()
         .fold((0, f32::NEG_INFINITY), |best, (i, s)| {

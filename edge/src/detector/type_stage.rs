@@ -12,7 +12,7 @@ use towernav_protocol::{Detection, TowerType};
 
 use super::classes::ClassMap;
 use super::crop_batch::Region;
-use super::decode::{RawDetection, nms};
+use super::decode::{RawDetection, best_class, nms, runners_up};
 
 /// Crop side over the box's longer edge (`PAD` in `training/train_types.py`).
 pub const CROP_PAD: f64 = 1.15;
@@ -47,10 +47,10 @@ pub fn retype(
         .iter()
         .zip(probs.chunks_exact(k))
         .flat_map(|(d, p)| {
-            let mut ranked: Vec<(usize, f32)> = p.iter().copied().enumerate().collect();
-            ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
-            ranked.truncate(types_per_box.max(1));
-            ranked.into_iter().filter_map(|(class, prob)| {
+            let best = best_class(p.iter().copied());
+            let ranked =
+                std::iter::once(best).chain(runners_up(p.iter().copied(), best.0, types_per_box));
+            ranked.filter_map(|(class, prob)| {
                 Some(RawDetection {
                     bbox: d.bbox,
                     class: classes.tower_type(class)?.index(),
