@@ -94,6 +94,19 @@ struct DetectorArgs {
     /// Detections below this confidence are dropped.
     #[arg(long, default_value_t = 0.25)]
     min_score: f32,
+    /// Weight of the detector's own type scores against the classifier's
+    /// reading of the crop, 0 to 1 (0: the classifier alone).
+    #[arg(long, default_value_t = towernav_edge::detector::postprocess::DETECTOR_TYPE_WEIGHT,
+          value_parser = unit_interval)]
+    detector_type_weight: f32,
+}
+
+fn unit_interval(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(w) if (0.0..=1.0).contains(&w) => Ok(w),
+        Ok(w) => Err(format!("{w} is not between 0 and 1")),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 impl DetectorArgs {
@@ -120,6 +133,7 @@ impl DetectorArgs {
             cuda: self.cuda,
             post: PostprocessParams {
                 min_score: self.min_score,
+                detector_type_weight: self.detector_type_weight,
                 ..PostprocessParams::default()
             },
         }

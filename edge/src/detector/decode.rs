@@ -4,6 +4,7 @@
 //! model-input pixels.
 
 use towernav_geometry::PixelBox;
+use towernav_protocol::TowerType;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
@@ -33,11 +34,27 @@ pub fn layout(shape: &[usize], classes: usize) -> Result<Layout, LayoutError> {
     }
 }
 
+/// A candidate's score for every class, in model order. Sized for the tower
+/// types: `ClassMap` refuses any other class list at load, and a shorter
+/// output leaves the rest at zero.
+pub type ClassScores = [f32; TowerType::ALL.len()];
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RawDetection {
     pub bbox: PixelBox,
     pub class: usize,
     pub score: f32,
+    /// What the detector gave each type (YOLOv5: before objectness), so a
+    /// second stage can weigh its own reading of the type against it.
+    pub class_scores: ClassScores,
+}
+
+fn class_scores(scores: impl Iterator<Item = f32>) -> ClassScores {
+    let mut out = ClassScores::default();
+    for (slot, s) in out.iter_mut().zip(scores) {
+        *slot = s;
+    }
+    out
 }
 
 /// What a candidate's score measures.
@@ -108,10 +125,16 @@ pub fn decode(
                     1
                 };
                 let picks = std::iter::once((class, best)).chain(runners_up(scores(), class, more));
+                let class_scores = class_scores(scores());
                 for (class, p) in picks {
                     let score = objectness * p;
                     if score >= min_score {
-                        out.push(RawDetection { bbox, class, score });
+                        out.push(RawDetection {
+                            bbox,
+                            class,
+                            score,
+                            class_scores,
+                        });
                     }
                 }
             }
@@ -132,8 +155,14 @@ pub fn decode(
                     1
                 };
                 let picks = std::iter::once((class, best)).chain(runners_up(scores(), class, more));
+                let class_scores = class_scores(scores());
                 for (class, score) in picks.filter(|(_, p)| *p >= min_score) {
-                    out.push(RawDetection { bbox, class, score });
+                    out.push(RawDetection {
+                        bbox,
+                        class,
+                        score,
+                        class_scores,
+                    });
                 }
             }
         }
@@ -212,6 +241,7 @@ mod tests {
         assert_eq!(dets[0].class, 1);
         assert!((dets[0].score - 0.72).abs() < 1e-6);
         assert_eq!(dets[0].bbox, PixelBox::new(90.0, 160.0, 110.0, 240.0));
+        assert_eq!(dets[0].class_scores, [0.1, 0.8, 0.05, 0.05]);
     }
 
     #[test]
@@ -290,6 +320,7 @@ mod tests {
             bbox: PixelBox::new(x, 0.0, x + 20.0, 80.0),
             class,
             score,
+            class_scores: ClassScores::default(),
         };
         let kept = nms(
             vec![

@@ -13,6 +13,6 @@ pub mod type_stage;
 
 pub use classes::{ClassError, ClassMap};
 pub use crop_batch::{CropBatch, CropError, Region};
-pub use decode::{Layout, LayoutError, RawDetection, ScoreMode, decode, layout, nms};
+pub use decode::{ClassScores, Layout, LayoutError, RawDetection, ScoreMode, decode, layout, nms};
 pub use letterbox::{Letterbox, PreprocessError, Preprocessor};
-pub use postprocess::{PostprocessParams, postprocess};
+pub use postprocess::{Candidate, PostprocessParams, postprocess};

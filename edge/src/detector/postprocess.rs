@@ -4,7 +4,7 @@ use towernav_geometry::PixelBox;
 use towernav_protocol::Detection;
 
 use super::classes::ClassMap;
-use super::decode::{LayoutError, ScoreMode, decode, nms, nms_any_class};
+use super::decode::{ClassScores, LayoutError, ScoreMode, decode, nms, nms_any_class};
 use super::letterbox::Letterbox;
 
 /// Score and overlap thresholds.
@@ -28,6 +28,11 @@ pub struct PostprocessParams {
     /// (`multi_label`) asks for every type, so a box whose second guess is
     /// right still ranks.
     pub types_per_box: usize,
+    /// How much a second stage that names types weighs the detector's own
+    /// type scores against its reading of the crop (0: the crop alone). The
+    /// two err differently: the classifier takes cat-head A towers for D, the
+    /// detector takes them for B.
+    pub detector_type_weight: f32,
 }
 
 impl Default for PostprocessParams {
@@ -39,8 +44,19 @@ impl Default for PostprocessParams {
             max_detections: 300,
             score: ScoreMode::BestClass,
             types_per_box: 1,
+            detector_type_weight: DETECTOR_TYPE_WEIGHT,
         }
     }
+}
+
+/// The default `detector_type_weight`.
+pub const DETECTOR_TYPE_WEIGHT: f32 = 0.5;
+
+/// A detection with the detector's score for every type.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    pub detection: Detection,
+    pub class_scores: ClassScores,
 }
 
 /// Decode, suppress, map back through the letterbox and clip to the frame.
@@ -51,7 +67,7 @@ pub fn postprocess(
     letterbox: &Letterbox,
     frame_size: (u32, u32),
     params: &PostprocessParams,
-) -> Result<Vec<Detection>, LayoutError> {
+) -> Result<Vec<Candidate>, LayoutError> {
     let raw = decode(
         output,
         shape,
@@ -69,10 +85,13 @@ pub fn postprocess(
         .into_iter()
         .filter_map(|d| {
             let bbox: PixelBox = letterbox.to_frame(&d.bbox).clipped(w, h);
-            (bbox.height() >= params.min_height_px && bbox.width() > 0.0).then_some(Detection {
-                bbox,
-                tower_type: classes.tower_type(d.class)?,
-                score: f64::from(d.score),
+            (bbox.height() >= params.min_height_px && bbox.width() > 0.0).then_some(Candidate {
+                detection: Detection {
+                    bbox,
+                    tower_type: classes.tower_type(d.class)?,
+                    score: f64::from(d.score),
+                },
+                class_scores: d.class_scores,
             })
         })
         .take(params.max_detections)
@@ -113,10 +132,14 @@ mod tests {
         )
         .expect("decodes");
         assert_eq!(dets.len(), 2, "{dets:?}");
-        assert_eq!(dets[0].tower_type, TowerType::B);
-        assert_eq!(dets[0].bbox, PixelBox::new(250.0, 250.0, 275.0, 350.0));
-        assert_eq!(dets[1].tower_type, TowerType::D);
-        assert_eq!(dets[1].bbox.right, 1280.0, "clipped to the frame");
+        assert_eq!(dets[0].detection.tower_type, TowerType::B);
+        assert_eq!(
+            dets[0].detection.bbox,
+            PixelBox::new(250.0, 250.0, 275.0, 350.0)
+        );
+        assert_eq!(dets[0].class_scores, [0.0, 0.9, 0.0, 0.0]);
+        assert_eq!(dets[1].detection.tower_type, TowerType::D);
+        assert_eq!(dets[1].detection.bbox.right, 1280.0, "clipped to the frame");
     }
 
     #[test]

@@ -12,7 +12,8 @@ use towernav_protocol::{Detection, TowerType};
 
 use super::classes::ClassMap;
 use super::crop_batch::Region;
-use super::decode::{RawDetection, best_class, nms, runners_up};
+use super::decode::{ClassScores, RawDetection, best_class, nms, runners_up};
+use super::postprocess::{Candidate, PostprocessParams};
 
 /// Crop side over the box's longer edge (`PAD` in `training/train_types.py`).
 pub const CROP_PAD: f64 = 1.15;
@@ -30,36 +31,41 @@ pub fn crop_square(b: &PixelBox) -> Region {
     }
 }
 
-/// Give each box the classifier's type (its `types_per_box` likeliest, for
-/// scoring mAP as Ultralytics does). `probs` holds one row of class
-/// probabilities per box, in `classes`' order. The score becomes the
+/// Give each box its type (its `types_per_box` likeliest, for scoring mAP as
+/// Ultralytics does). `probs` holds the classifier's class probabilities, one
+/// row per box in `classes`' order; they are blended with the detector's own
+/// type scores (`params.detector_type_weight`). The score becomes the
 /// detector's (how sure it is of a tower) times the type's probability, and
 /// boxes the new types made duplicates of one another are suppressed.
 pub fn retype(
-    dets: &[Detection],
+    candidates: &[Candidate],
     probs: &[f32],
     classes: &ClassMap,
-    nms_iou: f64,
-    types_per_box: usize,
+    params: &PostprocessParams,
 ) -> Vec<Detection> {
     let k = classes.len();
-    let raw: Vec<RawDetection> = dets
+    let raw: Vec<RawDetection> = candidates
         .iter()
         .zip(probs.chunks_exact(k))
-        .flat_map(|(d, p)| {
+        .flat_map(|(c, p)| {
+            let p = blend(p, &c.class_scores, params.detector_type_weight);
             let best = best_class(p.iter().copied());
-            let ranked =
-                std::iter::once(best).chain(runners_up(p.iter().copied(), best.0, types_per_box));
-            ranked.filter_map(|(class, prob)| {
+            let ranked = std::iter::once(best).chain(runners_up(
+                p.iter().copied(),
+                best.0,
+                params.types_per_box,
+            ));
+            ranked.filter_map(move |(class, prob)| {
                 Some(RawDetection {
-                    bbox: d.bbox,
+                    bbox: c.detection.bbox,
                     class: classes.tower_type(class)?.index(),
-                    score: (d.score as f32) * prob,
+                    score: (c.detection.score as f32) * prob,
+                    class_scores: p,
                 })
             })
         })
         .collect();
-    nms(raw, nms_iou)
+    nms(raw, params.nms_iou)
         .into_iter()
         .map(|r| Detection {
             bbox: r.bbox,
@@ -67,6 +73,37 @@ pub fn retype(
             score: f64::from(r.score),
         })
         .collect()
+}
+
+/// The classifier's probabilities and the detector's type scores (made to
+/// sum to one) in a weighted geometric mean, normalised: a type either model
+/// rules out stays unlikely, and where they disagree the surer one leads.
+fn blend(probs: &[f32], detector: &ClassScores, weight: f32) -> ClassScores {
+    /// Floor on each probability: a zero would veto a type outright.
+    const FLOOR: f32 = 1e-4;
+    let total: f32 = detector.iter().take(probs.len()).map(|s| s.max(0.0)).sum();
+    let mut out = ClassScores::default();
+    for (i, (slot, &p)) in out.iter_mut().zip(probs).enumerate() {
+        let q = if total > 0.0 {
+            detector[i].max(0.0) / total
+        } else {
+            1.0 / probs.len() as f32
+        };
+        *slot = (1.0 - weight) * p.max(FLOOR).ln() + weight * q.max(FLOOR).ln();
+    }
+    let top = out[..probs.len()]
+        .iter()
+        .copied()
+        .fold(f32::NEG_INFINITY, f32::max);
+    let mut sum = 0.0;
+    for v in &mut out[..probs.len()] {
+        *v = (*v - top).exp();
+        sum += *v;
+    }
+    for v in &mut out[..probs.len()] {
+        *v /= sum;
+    }
+    out
 }
 
 #[cfg(test)]
@@ -92,46 +129,82 @@ mod tests {
         );
     }
 
+    fn candidate(bbox: PixelBox, tower_type: TowerType, score: f64) -> Candidate {
+        let mut class_scores = ClassScores::default();
+        class_scores[tower_type.index()] = 1.0;
+        Candidate {
+            detection: Detection {
+                bbox,
+                tower_type,
+                score,
+            },
+            class_scores,
+        }
+    }
+
+    /// The classifier alone names the type.
+    fn crop_only(types_per_box: usize) -> PostprocessParams {
+        PostprocessParams {
+            nms_iou: 0.5,
+            types_per_box,
+            detector_type_weight: 0.0,
+            ..PostprocessParams::default()
+        }
+    }
+
     #[test]
     fn boxes_take_the_classifier_type_and_new_duplicates_go() {
         let b = PixelBox::new(100.0, 100.0, 120.0, 180.0);
         let shifted = PixelBox::new(101.0, 100.0, 121.0, 180.0);
         let dets = [
-            Detection {
-                bbox: b,
-                tower_type: TowerType::C,
-                score: 0.8,
-            },
+            candidate(b, TowerType::C, 0.8),
             // The detector's second guess at the same tower.
-            Detection {
-                bbox: shifted,
-                tower_type: TowerType::D,
-                score: 0.6,
-            },
+            candidate(shifted, TowerType::D, 0.6),
         ];
         let probs = [0.0, 0.9, 0.1, 0.0, 0.1, 0.7, 0.2, 0.0];
-        let out = retype(&dets, &probs, &classes(), 0.5, 1);
+        let out = retype(&dets, &probs, &classes(), &crop_only(1));
         assert_eq!(out.len(), 1, "{out:?}");
         assert_eq!(out[0].tower_type, TowerType::B);
-        assert!((out[0].score - 0.72).abs() < 1e-6);
+        assert!((out[0].score - 0.72).abs() < 1e-3);
         assert_eq!(out[0].bbox, b);
     }
 
     #[test]
     fn a_box_may_carry_its_likelier_types_each_with_its_own_score() {
         let b = PixelBox::new(100.0, 100.0, 120.0, 180.0);
-        let dets = [Detection {
-            bbox: b,
-            tower_type: TowerType::A,
-            score: 0.5,
-        }];
+        let dets = [candidate(b, TowerType::A, 0.5)];
         let probs = [0.1, 0.6, 0.3, 0.0];
-        let out = retype(&dets, &probs, &classes(), 0.5, 2);
+        let out = retype(&dets, &probs, &classes(), &crop_only(2));
         let got: Vec<(TowerType, f64)> = out.iter().map(|d| (d.tower_type, d.score)).collect();
         assert_eq!(got.len(), 2, "{got:?}");
         assert_eq!((got[0].0, got[1].0), (TowerType::B, TowerType::C));
-        assert!((got[0].1 - 0.3).abs() < 1e-6 && (got[1].1 - 0.15).abs() < 1e-6);
+        assert!((got[0].1 - 0.3).abs() < 1e-3 && (got[1].1 - 0.15).abs() < 1e-3);
         assert!(out.iter().all(|d| d.bbox == b));
+    }
+
+    #[test]
+    fn a_detector_sure_of_the_type_tips_a_classifier_in_doubt() {
+        let b = PixelBox::new(100.0, 100.0, 120.0, 180.0);
+        // The crop reads D a little more than A; the detector saw an A.
+        let mut dets = [candidate(b, TowerType::A, 0.9)];
+        dets[0].class_scores = [0.8, 0.05, 0.0, 0.1];
+        let probs = [0.4, 0.02, 0.03, 0.55];
+        let params = PostprocessParams::default();
+        assert!(params.detector_type_weight > 0.0);
+        assert_eq!(
+            retype(&dets, &probs, &classes(), &params)[0].tower_type,
+            TowerType::A
+        );
+        assert_eq!(
+            retype(&dets, &probs, &classes(), &crop_only(1))[0].tower_type,
+            TowerType::D
+        );
+        // A classifier that is sure keeps its type against the detector.
+        let sure = [0.05, 0.0, 0.0, 0.95];
+        assert_eq!(
+            retype(&dets, &sure, &classes(), &params)[0].tower_type,
+            TowerType::D
+        );
     }
 
     proptest! {
@@ -147,6 +220,23 @@ mod tests {
             prop_assert!(x as f64 <= b.left + 0.5 && y as f64 <= b.top + 0.5);
             prop_assert!(x as f64 + side >= b.right - 0.5 && y as f64 + side >= b.bottom - 0.5);
             prop_assert!((side - CROP_PAD * w.max(h)).abs() <= 0.5);
+        }
+
+        #[test]
+        fn a_blend_is_a_distribution_and_weight_zero_is_the_classifier(
+            raw in proptest::array::uniform4(0.001..1.0f32),
+            detector in proptest::array::uniform4(0.0..1.0f32),
+            weight in 0.0..1.0f32,
+        ) {
+            let total: f32 = raw.iter().sum();
+            let probs: Vec<f32> = raw.iter().map(|p| p / total).collect();
+            let b = blend(&probs, &detector, weight);
+            prop_assert!((b.iter().sum::<f32>() - 1.0).abs() < 1e-4);
+            prop_assert!(b.iter().all(|p| (0.0..=1.0).contains(p)));
+            let alone = blend(&probs, &detector, 0.0);
+            for (a, p) in alone.iter().zip(&probs) {
+                prop_assert!((a - p).abs() < 1e-4, "{alone:?} vs {probs:?}");
+            }
         }
     }
 }

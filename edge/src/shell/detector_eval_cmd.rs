@@ -45,6 +45,8 @@ pub struct DetectorEval {
     pub input: (u32, u32),
     /// Types each box was scored under (1: as the pipeline gets them).
     pub types_per_box: usize,
+    /// Weight of the detector's type scores against the classifier's.
+    pub detector_type_weight: f32,
     pub images: usize,
     pub all: MetricsJson,
     pub taller_than_40px: MetricsJson,
@@ -210,6 +212,7 @@ pub fn evaluate(
         type_model: type_model.map(|p| p.display().to_string()),
         input: (info.input_width, info.input_height),
         types_per_box: detector_options.post.types_per_box,
+        detector_type_weight: detector_options.post.detector_type_weight,
         images: latencies.len(),
         all: MetricsJson::from(&all),
         taller_than_40px: MetricsJson::from(&tall),
@@ -314,7 +317,13 @@ pub fn write_all(
         eval.model,
         eval.input.0,
         eval.input.1,
-        eval.type_model.as_deref().unwrap_or("the detector"),
+        eval.type_model.as_deref().map_or_else(
+            || "the detector".to_string(),
+            |m| format!(
+                "{m} and the detector (weight {})",
+                eval.detector_type_weight
+            )
+        ),
         eval.types_per_box,
         eval.images,
         options.worlds,

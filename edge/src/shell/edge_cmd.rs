@@ -152,6 +152,7 @@ pub async fn run_edge(
                 cuda: config.detector.cuda,
                 post: PostprocessParams {
                     min_score: config.detector.min_score,
+                    detector_type_weight: config.detector.detector_type_weight,
                     ..PostprocessParams::default()
                 },
             };

@@ -12,8 +12,9 @@ use towernav_geometry::PixelBox;
 use towernav_protocol::Detection;
 
 use super::onnx::{OnnxError, load_session, model_classes, only_input};
+use crate::detector::postprocess::Candidate;
 use crate::detector::type_stage::{crop_square, retype};
-use crate::detector::{ClassMap, CropBatch, Region};
+use crate::detector::{ClassMap, CropBatch, PostprocessParams, Region};
 
 /// At most this many boxes a frame are classified, best first; the rest are
 /// dropped. It bounds the frame's work: a camera sees a handful of towers, and
@@ -120,13 +121,12 @@ impl TypeClassifier {
     pub fn retype(
         &mut self,
         frame: &RgbImage,
-        dets: &[Detection],
-        nms_iou: f64,
-        types_per_box: usize,
+        candidates: &[Candidate],
+        params: &PostprocessParams,
     ) -> Result<Vec<Detection>, OnnxError> {
-        let dets = &dets[..dets.len().min(MAX_TYPED)];
-        let boxes: Vec<PixelBox> = dets.iter().map(|d| d.bbox).collect();
+        let candidates = &candidates[..candidates.len().min(MAX_TYPED)];
+        let boxes: Vec<PixelBox> = candidates.iter().map(|c| c.detection.bbox).collect();
         let probs = self.probabilities(frame, &boxes)?;
-        Ok(retype(dets, &probs, &self.classes, nms_iou, types_per_box))
+        Ok(retype(candidates, &probs, &self.classes, params))
     }
 }

@@ -162,7 +162,7 @@ impl YoloDetector {
             .try_extract_tensor::<f32>()
             .map_err(|e| fail(format!("output is not float32: {e}")))?;
         let out_shape: Vec<usize> = out_shape.iter().map(|d| *d as usize).collect();
-        let dets = postprocess(
+        let candidates = postprocess(
             values,
             &out_shape,
             &self.classes,
@@ -172,8 +172,8 @@ impl YoloDetector {
         )
         .map_err(|e| fail(e.to_string()))?;
         match &mut self.types {
-            Some(types) => types.retype(frame, &dets, self.post.nms_iou, self.post.types_per_box),
-            None => Ok(dets),
+            Some(types) => types.retype(frame, &candidates, &self.post),
+            None => Ok(candidates.into_iter().map(|c| c.detection).collect()),
         }
     }
 }

@@ -147,6 +147,9 @@ pub struct DetectorSection {
     pub threads: usize,
     pub cuda: bool,
     pub min_score: f32,
+    /// With the classifier: how much the detector's own type scores count
+    /// against the crop's reading, 0 to 1 (0: the classifier alone).
+    pub detector_type_weight: f32,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -272,6 +275,7 @@ impl Default for DetectorSection {
             threads: 2,
             cuda: false,
             min_score: 0.25,
+            detector_type_weight: crate::detector::postprocess::DETECTOR_TYPE_WEIGHT,
         }
     }
 }
@@ -383,6 +387,12 @@ impl EdgeConfig {
                 format!("{} is not in [0, 1)", self.detector.min_score),
             );
         }
+        if !(0.0..=1.0).contains(&self.detector.detector_type_weight) {
+            return invalid(
+                "detector.detector_type_weight",
+                format!("{} is not in [0, 1]", self.detector.detector_type_weight),
+            );
+        }
         match self.attitude.kind {
             AttitudeKind::Source if s.kind != SourceKind::Sim => {
                 return invalid(
@@ -482,8 +492,12 @@ mod tests {
         assert!(err.contains("fsp"), "{err}");
         let err = EdgeConfig::parse("[source]\nfps = \"fast\"\n").expect_err("type");
         assert!(err.contains("fps"), "{err}");
-        let cases: [(&str, &str); 7] = [
+        let cases: [(&str, &str); 8] = [
             ("[source]\nkind = \"video\"\n", "source.path"),
+            (
+                "[detector]\ndetector_type_weight = 1.5\n",
+                "detector.detector_type_weight",
+            ),
             ("[source]\nfps = 0\n", "source.fps"),
             (
                 "[source]\nkind = \"images\"\npath = \"x\"\n[detector]\nkind = \"oracle\"\n",
