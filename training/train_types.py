@@ -48,6 +48,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--init", type=Path, help="continue from these weights (an earlier run's best.pt) instead of from scratch")
     return p.parse_args()
 
 
@@ -176,7 +177,9 @@ def main() -> int:
     else:
         if run_dir.exists():
             shutil.rmtree(run_dir)
-        model = YOLO(args.model)
+        # A .yaml builds a random init (no download); --init continues from
+        # an earlier run's weights.
+        model = YOLO(str(args.init) if args.init else args.model)
         model.train(
             data=str(crops),
             epochs=args.epochs,
@@ -186,7 +189,7 @@ def main() -> int:
             workers=args.workers,
             device="cpu",
             cache="ram",
-            pretrained=False,
+            pretrained=bool(args.init),
             amp=False,
             plots=False,
             project=str(out),
@@ -220,6 +223,7 @@ def main() -> int:
         metrics[split] = {"top1": float(r.top1)}
     summary = {
         "model": args.model,
+        "init": str(args.init) if args.init else None,
         "imgsz": args.imgsz,
         "crop_pad": PAD,
         "min_height_px": args.min_height,
