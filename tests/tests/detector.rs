@@ -83,7 +83,10 @@ fn wrong_models_are_refused_at_load_saying_why() {
 
 #[test]
 fn the_type_classifier_names_each_box_from_its_full_resolution_crop() {
-    let options = DetectorOptions::default();
+    // The crop alone: the stand-in detector is certain of its type, so any
+    // blend would follow it (the blend has its own tests in `type_stage`).
+    let mut options = DetectorOptions::default();
+    options.post.detector_type_weight = 0.0;
     let mut detector = YoloDetector::load_with_types(
         &fixture("fake-v8-towers.onnx"),
         Some(&fixture("fake-types.onnx")),
@@ -115,6 +118,18 @@ fn the_type_classifier_names_each_box_from_its_full_resolution_crop() {
     let dets = detector.detect(&frame, 1).expect("runs");
     assert_eq!(dets.len(), 1, "{dets:?}");
     assert!(dets[0].bbox.iou(&b) > 0.99, "{:?}", dets[0].bbox);
+    assert_eq!(dets[0].tower_type, TowerType::B);
+
+    // Blended as the daemon runs it, the detector's certain B outweighs the
+    // crop's D: its class scores reach the type stage.
+    let mut blended = YoloDetector::load_with_types(
+        &fixture("fake-v8-towers.onnx"),
+        Some(&fixture("fake-types.onnx")),
+        &DetectorOptions::default(),
+    )
+    .expect("loads");
+    let dets = blended.detect(&blue, 2).expect("runs");
+    assert_eq!(dets.len(), 1, "{dets:?}");
     assert_eq!(dets[0].tower_type, TowerType::B);
 }
 
