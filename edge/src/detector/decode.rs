@@ -99,6 +99,12 @@ pub fn decode(
     types_per_box: usize,
 ) -> Result<Vec<RawDetection>, LayoutError> {
     let kind = layout(shape, classes)?;
+    // Runner-up types only where the score is one type's.
+    let more = if mode == ScoreMode::BestClass {
+        types_per_box
+    } else {
+        1
+    };
     let mut out = Vec::new();
     let cxcywh = |cx: f32, cy: f32, w: f32, h: f32| {
         PixelBox::new(
@@ -119,11 +125,6 @@ pub fn decode(
                 let bbox = cxcywh(row[0], row[1], row[2], row[3]);
                 let scores = || row[5..].iter().copied();
                 let (class, best) = mode.pick(scores());
-                let more = if mode == ScoreMode::BestClass {
-                    types_per_box
-                } else {
-                    1
-                };
                 let picks = std::iter::once((class, best)).chain(runners_up(scores(), class, more));
                 let class_scores = class_scores(scores());
                 for (class, p) in picks {
@@ -149,11 +150,6 @@ pub fn decode(
                     continue;
                 }
                 let bbox = cxcywh(at(0, i), at(1, i), at(2, i), at(3, i));
-                let more = if mode == ScoreMode::BestClass {
-                    types_per_box
-                } else {
-                    1
-                };
                 let picks = std::iter::once((class, best)).chain(runners_up(scores(), class, more));
                 let class_scores = class_scores(scores());
                 for (class, score) in picks.filter(|(_, p)| *p >= min_score) {
