@@ -172,13 +172,26 @@ struct RunArgs {
     /// Simulation seed: detector noise, misses, false positives, IMU noise.
     #[arg(long)]
     seed: Option<u64>,
-    /// Simulator playback speed relative to real time; 0 runs as fast as possible.
+    /// Playback speed relative to real time, for recorded sources; when the
+    /// pipeline falls behind, the oldest frame is dropped. 0: every frame, as
+    /// fast as the pipeline goes. Default: 4 for the simulator; 0 for an image
+    /// folder or a video file (1 replays them in real time). Live cameras
+    /// (rtsp, v4l2) pace themselves and take no speed.
     #[arg(long)]
     speed: Option<f64>,
-    /// Simulated flight plan (seed-path-1, seed-path-2, straight, out-and-back, lawnmower);
-    /// default: the skeleton's level flight.
+    /// Simulated flight: a preset (seed-path-1, seed-path-2, straight,
+    /// out-and-back, lawnmower) or a waypoint plan file (TOML, as in
+    /// sim/flights/). Default: the skeleton's level flight over the seed's
+    /// field; a pass along the longest line over any other world.
     #[arg(long)]
     flight: Option<String>,
+    /// Simulated world from a landmark CSV or database (positions, heights,
+    /// types); the edge localizes against the same towers unless --landmarks.
+    #[arg(long, conflicts_with = "random_world")]
+    world: Option<PathBuf>,
+    /// Simulated world drawn at random from this seed.
+    #[arg(long)]
+    random_world: Option<u64>,
     /// Stop after this many frames.
     #[arg(long)]
     max_frames: Option<u64>,
@@ -268,7 +281,13 @@ impl RunArgs {
             c.source.seed = v;
         }
         if let Some(v) = self.speed {
-            c.source.speed = v;
+            c.source.speed = Some(v);
+        }
+        if let Some(v) = &self.world {
+            c.source.world = Some(v.clone());
+        }
+        if let Some(v) = self.random_world {
+            c.source.random_world = Some(v);
         }
         if let Some(v) = &self.flight {
             c.source.flight = Some(v.clone());

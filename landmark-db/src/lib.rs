@@ -8,6 +8,7 @@ pub mod error;
 mod fields;
 pub mod formats;
 pub mod import;
+pub mod load;
 pub mod spatial;
 pub mod store;
 pub mod validate;
@@ -19,9 +20,9 @@ pub use csv_io::{RowProblem, export_csv, import_csv, parse_csv, read_csv};
 pub use error::{DbError, ImportError};
 pub use formats::{OSM_TYPE_TAG, OsmMapping, export_geojson, export_osm_xml};
 pub use import::{
-    Format, ImportOptions, ImportReport, Parsed, Warning, import_file, import_parsed,
-    likely_mistakes,
+    Format, ImportOptions, ImportReport, Parsed, Warning, import_file, import_parsed, likely_mistakes,
 };
+pub use load::load_towers;
 pub use spatial::LandmarkIndex;
 pub use store::{Author, LandmarkDb};
 pub use validate::{ValidationError, validate};

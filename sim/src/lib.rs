@@ -5,9 +5,11 @@
 //! Pure: no I/O, no clocks, no global state. Same seed, same frames.
 
 pub mod flight;
+pub mod landmark_world;
 pub mod oracle;
 pub mod quadrotor;
 pub mod render;
+pub mod replay;
 pub mod scenario;
 pub mod tower_model;
 pub mod truth;

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
+use towernav_sim::replay::{ReplaySource, ReplayWorld};
 use towernav_sim::waypoints::FlightPlan;
 use towernav_sim::world::WorldParams;
 use towernav_sim::{Conditions, Renderer, Scenario, World};
@@ -32,16 +33,26 @@ enum Weather {
 #[derive(clap::Args)]
 struct WorldArg {
     /// Use a seeded random world instead of the seed's 18-tower field.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "world")]
     random_world: Option<u64>,
+    /// Build the world from a landmark CSV or database (positions, heights,
+    /// types; lines by line_name) on a flat plate whose datum is 100 m south
+    /// and west of the towers, at the lowest foot.
+    #[arg(long)]
+    world: Option<PathBuf>,
 }
 
 impl WorldArg {
-    fn world(&self) -> World {
-        match self.random_world {
-            Some(seed) => World::random(seed, &WorldParams::default()),
-            None => World::seed_field(),
-        }
+    fn world(&self) -> anyhow::Result<World> {
+        Ok(match (&self.world, self.random_world) {
+            (Some(path), _) => {
+                let towers = towernav_landmark_db::load_towers(path)?;
+                World::from_landmarks(&towers)
+                    .with_context(|| format!("building a world from {}", path.display()))?
+            }
+            (None, Some(seed)) => World::random(seed, &WorldParams::default()),
+            (None, None) => World::seed_field(),
+        })
     }
 }
 
@@ -56,6 +67,17 @@ struct PlanArg {
 }
 
 impl PlanArg {
+    /// The same plan as the edge's `source.flight` spells it: a preset's name or a file's path.
+    fn spelled(&self) -> String {
+        match &self.plan {
+            Some(path) => std::path::absolute(path)
+                .unwrap_or_else(|_| path.clone())
+                .display()
+                .to_string(),
+            None => self.preset.clone(),
+        }
+    }
+
     fn plan(&self) -> anyhow::Result<FlightPlan> {
         Ok(match &self.plan {
             Some(path) => {
@@ -78,7 +100,9 @@ enum Command {
         #[arg(long, default_value = "-")]
         out: PathBuf,
     },
-    /// Fly a plan: trajectory.csv, truth.csv and MOT ground truth, optionally every frame as JPEG.
+    /// Fly a plan: trajectory.csv, truth.csv, MOT ground truth, towers.csv and
+    /// replay.toml (the edge replays it: with --images the frames as a camera,
+    /// else the same simulated flight with the oracle detector).
     Flight {
         #[command(flatten)]
         world: WorldArg,
@@ -150,7 +174,7 @@ fn main() -> anyhow::Result<()> {
         .init();
     match Cli::parse().command {
         Command::World { world, out } => {
-            let landmarks = world.world().landmarks();
+            let landmarks = world.world()?.landmarks();
             if out.as_os_str() == "-" {
                 towernav_landmark_db::export_csv(&landmarks, std::io::stdout().lock())?;
             } else {
@@ -169,20 +193,31 @@ fn main() -> anyhow::Result<()> {
             weather,
             out,
         } => {
-            let plan = plan.plan()?;
-            let scenario = Scenario::flying(world.world(), &plan, seed);
-            tracing::info!(plan = %plan.name, frames = scenario.frame_count(), duration_s = scenario.flight.duration_s(), "flying");
+            let flight_plan = plan.plan()?;
+            let scenario = Scenario::flying(world.world()?, &flight_plan, seed);
+            tracing::info!(plan = %flight_plan.name, frames = scenario.frame_count(), duration_s = scenario.flight.duration_s(), "flying");
+            let replay = ReplaySource::Oracle {
+                world: match (&world.world, world.random_world) {
+                    (Some(path), _) => ReplayWorld::File(
+                        std::path::absolute(path).unwrap_or_else(|_| path.clone()),
+                    ),
+                    (None, Some(seed)) => ReplayWorld::Random(seed),
+                    (None, None) => ReplayWorld::SeedField,
+                },
+                flight: plan.spelled(),
+            };
             cli::flight_cmd::write_flight(
                 &scenario,
-                &plan.name,
+                &flight_plan.name,
                 &out,
                 images,
                 &conditions(weather, seed),
+                &replay,
             )?;
             eprintln!(
                 "wrote {} frames of {} to {}",
                 scenario.frame_count(),
-                plan.name,
+                flight_plan.name,
                 out.display()
             );
         }
@@ -196,7 +231,7 @@ fn main() -> anyhow::Result<()> {
             out,
         } => {
             let plan = plan.plan()?;
-            let scenario = Scenario::flying(world.world(), &plan, seed);
+            let scenario = Scenario::flying(world.world()?, &plan, seed);
             let duration = scenario.flight.duration_s();
             anyhow::ensure!(
                 (0.0..=duration).contains(&time),

@@ -2,7 +2,12 @@
 //! wind, a velocity controller, and the attitude that its thrust vector needs.
 //!
 //! The attitude is what makes the camera realistic: thrust must tilt forward to
-//! hold speed against drag (nose down), and sideways to turn (roll).
+//! hold speed against drag (nose down), and sideways to turn (roll). The
+//! airframe cannot tilt at once: roll and pitch follow the tilt the controller
+//! asks for through a first-order loop with rate and acceleration limits, as a
+//! small quadrotor's attitude controller does, and the thrust acts along the
+//! tilt the airframe has, not the one it was asked for. Turns through a
+//! waypoint start before it, so the command itself does not step either.
 
 use nalgebra::{Point3, Vector2, Vector3};
 use rand::{Rng, SeedableRng};
@@ -43,6 +48,20 @@ pub struct QuadParams {
     /// Largest tilt of the thrust vector.
     pub max_tilt_rad: f64,
     pub max_yaw_rate_rad_s: f64,
+    /// Time constant of the roll and pitch loop, s.
+    pub attitude_tau_s: f64,
+    /// Largest roll and pitch rate, rad/s.
+    pub max_tilt_rate_rad_s: f64,
+    /// Largest roll and pitch angular acceleration, rad/s^2.
+    pub max_tilt_accel_rad_s2: f64,
+    /// Time constant of the heading loop, s.
+    pub yaw_tau_s: f64,
+    /// Largest yaw angular acceleration, rad/s^2.
+    pub max_yaw_accel_rad_s2: f64,
+    /// The turn onto the next leg starts this many seconds of flight before
+    /// its waypoint (at most half the shorter leg), and blends back out as far
+    /// after it.
+    pub turn_lead_s: f64,
     /// Velocity loop gain, 1/s.
     pub velocity_gain: f64,
     /// Cross-track and height gains, 1/s.
@@ -61,6 +80,12 @@ impl Default for QuadParams {
             max_accel_mps2: 3.0,
             max_tilt_rad: 25f64.to_radians(),
             max_yaw_rate_rad_s: 45f64.to_radians(),
+            attitude_tau_s: 0.15,
+            max_tilt_rate_rad_s: 150f64.to_radians(),
+            max_tilt_accel_rad_s2: 800f64.to_radians(),
+            yaw_tau_s: 0.3,
+            max_yaw_accel_rad_s2: 180f64.to_radians(),
+            turn_lead_s: 1.5,
             velocity_gain: 1.5,
             position_gain: 0.4,
             wind: WindParams::default(),
@@ -128,12 +153,26 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
     let mut position = at(0);
     let mut velocity = Vector3::new(first_dir.x, first_dir.y, 0.0) * wps[0].speed_mps;
     let mut yaw = first_dir.y.atan2(first_dir.x);
+    let mut yaw_rate = 0.0;
+    // Roll and pitch with their rates; `None` until the first command, which
+    // the flight starts trimmed at.
+    let mut tilt: Option<[AxisState; 2]> = None;
     let wind_mean = Vector2::new(params.wind.mean_mps.0, params.wind.mean_mps.1);
     let mut gust = Vector2::zeros();
     let mut leg = 0;
     let mut samples = Vec::new();
     let max_steps = (params.max_duration_s / dt) as usize;
     let max_horizontal = GRAVITY * params.max_tilt_rad.tan();
+    let loop_limits = AxisLimits {
+        tau_s: params.attitude_tau_s,
+        max_rate: params.max_tilt_rate_rad_s,
+        max_accel: params.max_tilt_accel_rad_s2,
+    };
+    let yaw_limits = AxisLimits {
+        tau_s: params.yaw_tau_s,
+        max_rate: params.max_yaw_rate_rad_s,
+        max_accel: params.max_yaw_accel_rad_s2,
+    };
     for _ in 0..max_steps {
         let (a, b) = (at(leg), at(leg + 1));
         let dir = leg_direction(&a, &b);
@@ -141,19 +180,28 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
         let along = (position - a).xy().dot(&dir).clamp(0.0, leg_len);
         let to_go = leg_len - along;
         let cross = (position - a).xy() - dir * along;
-        // Slow down before a turn so the corner stays tight: v^2 = v_turn^2 + 2 a d.
-        let turn_speed = match wps.get(leg + 2) {
-            Some(_) => {
-                let next = leg_direction(&b, &at(leg + 2));
-                wps[leg].speed_mps * (0.5 * (1.0 + dir.dot(&next))).sqrt().max(0.2)
+        let next_dir = (leg + 2 < wps.len()).then(|| leg_direction(&b, &at(leg + 2)));
+        // Slow down before a turn so the corner stays tight: v^2 = v_turn^2 + 2 a d,
+        // and slow enough that the bend through the waypoint (radius about
+        // lead / tan(angle / 2)) asks for no more than the braking share of
+        // the acceleration.
+        let turn_speed = match next_dir {
+            Some(next) => {
+                let cos = dir.dot(&next).clamp(-1.0, 1.0);
+                let half_tan = ((1.0 - cos) / (1.0 + cos).max(1e-9)).sqrt();
+                let radius = turn_lead_m(wps, leg, params.turn_lead_s) / half_tan.max(1e-9);
+                (wps[leg].speed_mps * (0.5 * (1.0 + cos)).sqrt())
+                    .min((0.6 * params.max_accel_mps2 * radius).sqrt())
+                    .max(0.2 * wps[leg].speed_mps)
             }
             None => 0.0,
         };
         let speed = wps[leg]
             .speed_mps
             .min((turn_speed.powi(2) + 2.0 * 0.6 * params.max_accel_mps2 * to_go).sqrt());
+        let heading = turn_heading(wps, leg, along, to_go, params.turn_lead_s);
         let height_target = a.z + (b.z - a.z) * (along / leg_len);
-        let v_des_h = dir * speed - cross * params.position_gain;
+        let v_des_h = heading * speed - cross * params.position_gain;
         let vz_des = ((height_target - position.z) * params.position_gain).clamp(-3.0, 3.0);
         // The controller knows the steady wind's drag, not the gusts'.
         let air_known = velocity.xy() - wind_mean;
@@ -166,23 +214,42 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
             thrust_h *= max_horizontal / thrust_h.norm();
         }
         let accel_z = (vz_des - velocity.z) * params.velocity_gain;
+        let thrust_z = GRAVITY + accel_z;
+        let wanted = attitude_from_thrust(&thrust_h, thrust_z, yaw);
+        let [roll, pitch] =
+            tilt.get_or_insert([AxisState::at(wanted.roll), AxisState::at(wanted.pitch)]);
+        let attitude = Attitude {
+            roll: roll.angle,
+            pitch: pitch.angle,
+            yaw,
+        };
+        // The thrust acts along the tilt the airframe has.
+        let thrust_applied = thrust_from_attitude(&attitude, thrust_z);
         let air_true = velocity.xy() - wind_mean - gust;
-        let accel_h = thrust_h - air_true * params.drag_per_s;
+        let accel_h = thrust_applied - air_true * params.drag_per_s;
 
         samples.push(Sample {
             position_in_world: position,
             velocity_in_world: velocity,
-            attitude: attitude_from_thrust(&thrust_h, GRAVITY + accel_z, yaw),
+            attitude,
         });
 
+        roll.step(wanted.roll - roll.angle, &loop_limits, dt);
+        pitch.step(wanted.pitch - pitch.angle, &loop_limits, dt);
         velocity += Vector3::new(accel_h.x, accel_h.y, accel_z) * dt;
         position += velocity * dt;
         let ground_speed = velocity.xy().norm();
-        if ground_speed > 1.0 {
-            let want = velocity.y.atan2(velocity.x);
-            let step = params.max_yaw_rate_rad_s * dt;
-            yaw = wrap_angle(yaw + wrap_angle(want - yaw).clamp(-step, step));
-        }
+        let yaw_error = if ground_speed > 1.0 {
+            wrap_angle(velocity.y.atan2(velocity.x) - yaw)
+        } else {
+            0.0
+        };
+        let mut yaw_axis = AxisState {
+            angle: yaw,
+            rate: yaw_rate,
+        };
+        yaw_axis.step(yaw_error, &yaw_limits, dt);
+        (yaw, yaw_rate) = (wrap_angle(yaw_axis.angle), yaw_axis.rate);
         let tau = params.wind.gust_tau_s.max(dt);
         let decay = (-dt / tau).exp();
         let drive = params.wind.gust_sigma_mps.max(0.0) * (1.0 - decay * decay).sqrt();
@@ -202,6 +269,82 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
         }
     }
     Trajectory { dt_s: dt, samples }
+}
+
+/// One attitude axis: its angle and rate, rad and rad/s.
+#[derive(Debug, Clone, Copy)]
+struct AxisState {
+    angle: f64,
+    rate: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct AxisLimits {
+    tau_s: f64,
+    max_rate: f64,
+    max_accel: f64,
+}
+
+impl AxisState {
+    fn at(angle: f64) -> Self {
+        Self { angle, rate: 0.0 }
+    }
+
+    /// Close `error` with time constant `tau_s`, the rate and its change limited.
+    fn step(&mut self, error: f64, limits: &AxisLimits, dt: f64) {
+        let wanted_rate = (error / limits.tau_s.max(dt)).clamp(-limits.max_rate, limits.max_rate);
+        let max_change = limits.max_accel * dt;
+        self.rate += (wanted_rate - self.rate).clamp(-max_change, max_change);
+        self.angle += self.rate * dt;
+    }
+}
+
+/// How far before the end of `leg` (and after the start of the next) the
+/// turn between them blends: `lead_s` of flight, at most half of either leg.
+fn turn_lead_m(wps: &[crate::waypoints::Waypoint], leg: usize, lead_s: f64) -> f64 {
+    let at = |i: usize| Point3::new(wps[i].east_m, wps[i].north_m, wps[i].height_m);
+    let leg_len = |i: usize| (at(i + 1) - at(i)).xy().norm();
+    let mut lead = (wps[leg].speed_mps * lead_s).min(0.5 * leg_len(leg));
+    if leg + 2 < wps.len() {
+        lead = lead.min(0.5 * leg_len(leg + 1));
+    }
+    lead.max(1e-6)
+}
+
+/// The direction to fly on `leg`: the leg's own, turning onto the next leg in
+/// the last stretch before its waypoint and out of the previous one in the
+/// first stretch after, so the heading bends through a waypoint instead of
+/// stepping there. The stretch is `lead_s` of flight, at most half a leg.
+fn turn_heading(
+    wps: &[crate::waypoints::Waypoint],
+    leg: usize,
+    along: f64,
+    to_go: f64,
+    lead_s: f64,
+) -> Vector2<f64> {
+    let at = |i: usize| Point3::new(wps[i].east_m, wps[i].north_m, wps[i].height_m);
+    let dir = leg_direction(&at(leg), &at(leg + 1));
+    let mut heading = dir;
+    if leg + 2 < wps.len() {
+        let d = turn_lead_m(wps, leg, lead_s);
+        if to_go < d {
+            let w = 0.5 * (1.0 - to_go / d);
+            heading = heading * (1.0 - w) + leg_direction(&at(leg + 1), &at(leg + 2)) * w;
+        }
+    }
+    if leg > 0 {
+        let d = turn_lead_m(wps, leg - 1, lead_s);
+        if along < d {
+            let w = 0.5 * (1.0 - along / d);
+            heading = heading * (1.0 - w) + leg_direction(&at(leg - 1), &at(leg)) * w;
+        }
+    }
+    // A reversal blends through zero: keep the leg's own direction there.
+    if heading.norm() < 1e-3 {
+        dir
+    } else {
+        heading.normalize()
+    }
 }
 
 fn leg_direction(a: &Point3<f64>, b: &Point3<f64>) -> Vector2<f64> {
@@ -225,6 +368,16 @@ fn attitude_from_thrust(thrust_h: &Vector2<f64>, thrust_z: f64, yaw: f64) -> Att
         roll: right.atan2((forward * forward + thrust_z * thrust_z).sqrt()),
         yaw,
     }
+}
+
+/// The horizontal thrust per unit mass that roll and pitch give with vertical
+/// thrust `thrust_z`: the inverse of `attitude_from_thrust`.
+fn thrust_from_attitude(attitude: &Attitude, thrust_z: f64) -> Vector2<f64> {
+    let thrust_z = thrust_z.max(1.0);
+    let forward = -attitude.pitch.tan() * thrust_z;
+    let right = attitude.roll.tan() * forward.hypot(thrust_z);
+    let (sin, cos) = attitude.yaw.sin_cos();
+    Vector2::new(forward * cos + right * sin, forward * sin - right * cos)
 }
 
 #[cfg(test)]
@@ -281,6 +434,94 @@ mod tests {
         }
         let steady = tr.sample_at(20.0).position_in_world;
         assert!((steady.y - 150.0).abs() < 5.0, "cross-track {}", steady.y);
+    }
+
+    /// Largest roll or pitch rate, yaw rate and roll or pitch acceleration, per second.
+    fn peak_rates(tr: &Trajectory) -> (f64, f64, f64) {
+        let rate = |a: &Sample, b: &Sample| {
+            (
+                (b.attitude.roll - a.attitude.roll) / tr.dt_s,
+                (b.attitude.pitch - a.attitude.pitch) / tr.dt_s,
+                wrap_angle(b.attitude.yaw - a.attitude.yaw) / tr.dt_s,
+            )
+        };
+        let rates: Vec<_> = tr.samples.windows(2).map(|w| rate(&w[0], &w[1])).collect();
+        let tilt = rates
+            .iter()
+            .map(|r| r.0.abs().max(r.1.abs()))
+            .fold(0.0, f64::max);
+        let yaw = rates.iter().map(|r| r.2.abs()).fold(0.0, f64::max);
+        let accel = rates
+            .windows(2)
+            .map(|w| ((w[1].0 - w[0].0).abs().max((w[1].1 - w[0].1).abs())) / tr.dt_s)
+            .fold(0.0, f64::max);
+        (tilt, yaw, accel)
+    }
+
+    #[test]
+    fn every_preset_turns_at_a_small_quadrotors_rates() {
+        let p = QuadParams::default();
+        for (name, _) in crate::waypoints::PRESETS {
+            let tr = flown(name);
+            let (tilt, yaw, accel) = peak_rates(&tr);
+            assert!(
+                tilt.to_degrees() <= 200.0,
+                "{name}: tilt rate {:.0} deg/s",
+                tilt.to_degrees()
+            );
+            assert!(
+                tilt <= p.max_tilt_rate_rad_s + 1e-9,
+                "{name}: tilt rate {tilt}"
+            );
+            assert!(yaw <= p.max_yaw_rate_rad_s + 1e-9, "{name}: yaw rate {yaw}");
+            assert!(
+                accel <= p.max_tilt_accel_rad_s2 * 1.001,
+                "{name}: tilt acceleration {:.0} deg/s^2",
+                accel.to_degrees()
+            );
+            // At 30 frames/s no frame sees the roll step, as trackers need.
+            let per_frame = tr
+                .samples
+                .iter()
+                .step_by(3)
+                .collect::<Vec<_>>()
+                .windows(2)
+                .map(|w| (w[1].attitude.roll - w[0].attitude.roll).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                per_frame.to_degrees() < 5.0,
+                "{name}: {:.1} deg in a frame",
+                per_frame.to_degrees()
+            );
+        }
+    }
+
+    #[test]
+    fn the_airframe_lags_the_command_it_is_given() {
+        // A lazier loop reaches the same turn with a smaller rate.
+        let plan = FlightPlan::preset("seed-path-1").expect("preset");
+        let quick = fly(&plan, &QuadParams::default(), 1);
+        let lazy = fly(
+            &plan,
+            &QuadParams {
+                attitude_tau_s: 0.6,
+                ..QuadParams::default()
+            },
+            1,
+        );
+        assert!(peak_rates(&lazy).0 < peak_rates(&quick).0 * 0.8);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn thrust_and_attitude_invert_each_other(
+            east in -8.0..8.0f64, north in -8.0..8.0f64, up in 5.0..15.0f64, yaw in -3.1..3.1f64
+        ) {
+            let thrust = Vector2::new(east, north);
+            let attitude = attitude_from_thrust(&thrust, up, yaw);
+            let back = thrust_from_attitude(&attitude, up);
+            proptest::prop_assert!((back - thrust).norm() < 1e-9, "{back} vs {thrust}");
+        }
     }
 
     #[test]

@@ -1,9 +1,9 @@
 //! Flight plans: waypoint files in TOML, and the named presets shipped in `sim/flights/`.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// One waypoint in the world's local ENU frame; `speed_mps` is for the leg that starts here.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Waypoint {
     pub east_m: f64,
@@ -13,7 +13,7 @@ pub struct Waypoint {
     pub speed_mps: f64,
 }
 
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FlightPlan {
     pub name: String,
@@ -42,7 +42,7 @@ pub enum PlanError {
     UnknownPreset { name: String, known: String },
 }
 
-/// Presets by name: the seed's two simulated paths and the other shapes the issue names.
+/// Presets by name: the seed's two simulated paths, a straight pass, an out-and-back and a lawnmower.
 pub const PRESETS: [(&str, &str); 5] = [
     ("seed-path-1", include_str!("../flights/seed-path-1.toml")),
     ("seed-path-2", include_str!("../flights/seed-path-2.toml")),
@@ -151,6 +151,84 @@ pub fn random_crossing(
     }
 }
 
+/// Where a flight plan comes from: a preset's name or a waypoint file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PlanSource {
+    Preset(String),
+    File(std::path::PathBuf),
+}
+
+impl PlanSource {
+    /// A preset when `text` names one; otherwise a path to a plan file.
+    pub fn parse(text: &str) -> Self {
+        if PRESETS.iter().any(|(name, _)| *name == text) {
+            Self::Preset(text.into())
+        } else {
+            Self::File(text.into())
+        }
+    }
+}
+
+/// A pass along `world`'s longest line: 60 m before its first tower to 60 m
+/// past its last, 30 m to the right of it, 12 m above its tallest tower (at
+/// least 30 m up), at 10 m/s: towers ahead stand in the forward camera's view.
+/// `None` for a world without a line of two towers.
+pub fn along_longest_line(world: &crate::World) -> Option<FlightPlan> {
+    let length = |line: &Vec<usize>| {
+        let (a, b) = (line.first()?, line.last()?);
+        Some(
+            (world.towers[*b].foot_in_world - world.towers[*a].foot_in_world)
+                .xy()
+                .norm(),
+        )
+    };
+    let line = world.lines.iter().filter(|l| l.len() >= 2).max_by(|a, b| {
+        length(a)
+            .unwrap_or(0.0)
+            .total_cmp(&length(b).unwrap_or(0.0))
+    })?;
+    let feet: Vec<(f64, f64)> = line
+        .iter()
+        .map(|&i| {
+            let p = world.towers[i].foot_in_world;
+            (p.x, p.y)
+        })
+        .collect();
+    let height_m = line
+        .iter()
+        .map(|&i| world.towers[i].foot_in_world.z + world.towers[i].height_m + 12.0)
+        .fold(30.0, f64::max)
+        .min(500.0);
+    let unit = |a: (f64, f64), b: (f64, f64)| {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let n = dx.hypot(dy).max(1e-9);
+        (dx / n, dy / n)
+    };
+    let (first, last) = (feet[0], feet[feet.len() - 1]);
+    let start_dir = unit(first, feet[1]);
+    let end_dir = unit(feet[feet.len() - 2], last);
+    let mut path = vec![(first.0 - 60.0 * start_dir.0, first.1 - 60.0 * start_dir.1)];
+    path.extend(feet.iter().copied());
+    path.push((last.0 + 60.0 * end_dir.0, last.1 + 60.0 * end_dir.1));
+    // Offset each point to the right of the local direction of travel.
+    let waypoints = (0..path.len())
+        .map(|k| {
+            let d = unit(path[k.saturating_sub(1)], path[(k + 1).min(path.len() - 1)]);
+            Waypoint {
+                east_m: path[k].0 + 30.0 * d.1,
+                north_m: path[k].1 - 30.0 * d.0,
+                height_m,
+                speed_mps: 10.0,
+            }
+        })
+        .collect();
+    Some(FlightPlan {
+        name: "along-the-line".into(),
+        description: "30 m beside the world's longest line, end to end".into(),
+        waypoints,
+    })
+}
+
 fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
     let (dx, dy) = (b.0 - a.0, b.1 - a.1);
     let len2 = (dx * dx + dy * dy).max(1e-9);
@@ -168,6 +246,47 @@ mod tests {
             let plan = FlightPlan::preset(name).expect(name);
             assert_eq!(plan.name, name);
         }
+    }
+
+    #[test]
+    fn a_plan_is_a_preset_by_name_or_else_a_file() {
+        assert_eq!(
+            PlanSource::parse("lawnmower"),
+            PlanSource::Preset("lawnmower".into())
+        );
+        assert_eq!(
+            PlanSource::parse("plans/survey.toml"),
+            PlanSource::File("plans/survey.toml".into())
+        );
+    }
+
+    #[test]
+    fn the_pass_along_a_line_flies_beside_every_tower() {
+        let world = crate::World::random(4, &crate::world::WorldParams::default());
+        let plan = along_longest_line(&world).expect("a line");
+        let beside = |i: usize, w: &Waypoint| {
+            let foot = world.towers[i].foot_in_world;
+            (w.east_m - foot.x).hypot(w.north_m - foot.y)
+        };
+        let line = world
+            .lines
+            .iter()
+            .find(|l| {
+                l.len() + 2 == plan.waypoints.len() && beside(l[0], &plan.waypoints[1]) < 31.0
+            })
+            .expect("the longest line");
+        for (k, &i) in line.iter().enumerate() {
+            let foot = world.towers[i].foot_in_world;
+            let w = &plan.waypoints[k + 1];
+            let off = (w.east_m - foot.x).hypot(w.north_m - foot.y);
+            assert!((off - 30.0).abs() < 1e-6, "{off}");
+            assert!(w.height_m > world.towers[i].height_m);
+        }
+        let text = toml::to_string(&plan).expect("serializes");
+        assert_eq!(
+            FlightPlan::parse(&text, "round trip").expect("parses"),
+            plan
+        );
     }
 
     #[test]

@@ -297,13 +297,23 @@ impl World {
     }
 
     /// The towers as surveyed landmarks, in WGS84, for the database.
+    /// Each tower's `line_name` is its line's number, so the lines come back
+    /// whole when the records build a world again.
     pub fn landmarks(&self) -> Vec<LandmarkRecord> {
+        let line_of = |i: usize| {
+            self.lines
+                .iter()
+                .position(|line| line.contains(&i))
+                .map(|k| format!("line {}", k + 1))
+        };
         self.towers
             .iter()
-            .map(|t| {
+            .enumerate()
+            .map(|(i, t)| {
                 let g = self.datum.to_geodetic(&t.foot_in_world);
                 LandmarkRecord {
                     base_width_m: Some(t.base_width_m),
+                    line_name: line_of(i),
                     survey_source: Some("towernav-sim".into()),
                     sigma_horizontal_m: Some(0.0),
                     sigma_vertical_m: Some(0.0),

@@ -193,3 +193,56 @@ fn bad_plans_and_times_are_refused_with_the_reason() {
         "{err}"
     );
 }
+
+#[test]
+fn a_flight_without_images_writes_an_oracle_replay_over_the_same_world() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let first = dir.path().join("first");
+    sim(&[
+        "flight",
+        "--random-world",
+        "5",
+        "--preset",
+        "straight",
+        "--out",
+        first.to_str().expect("utf-8"),
+    ]);
+    let towers = first.join("towers.csv");
+    let replay = std::fs::read_to_string(first.join("replay.toml")).expect("replay.toml");
+    for line in [
+        "kind = \"sim\"",
+        "random_world = 5",
+        "flight = \"straight\"",
+        "kind = \"oracle\"",
+        &format!("file = {:?}", towers.display().to_string()),
+    ] {
+        assert!(
+            replay.contains(line),
+            "replay.toml lacks {line:?}:\n{replay}"
+        );
+    }
+    // The written towers fly again as a world of their own.
+    let second = dir.path().join("second");
+    sim(&[
+        "flight",
+        "--world",
+        towers.to_str().expect("utf-8"),
+        "--preset",
+        "straight",
+        "--out",
+        second.to_str().expect("utf-8"),
+    ]);
+    let replay = std::fs::read_to_string(second.join("replay.toml")).expect("replay.toml");
+    assert!(
+        replay.contains(&format!("world = {:?}", towers.display().to_string())),
+        "{replay}"
+    );
+    let written = std::fs::read_to_string(second.join("towers.csv")).expect("towers");
+    assert_eq!(
+        written.lines().count(),
+        std::fs::read_to_string(&towers)
+            .expect("towers")
+            .lines()
+            .count()
+    );
+}

@@ -75,7 +75,7 @@ fn edge_config(fleet: &str, uav: usize, router: &str, options: &FleetOptions) ->
     c.zenoh.mode = ZenohMode::Client;
     c.source.seed = 100 + uav as u64;
     c.source.max_frames = Some(options.frames);
-    c.source.speed = options.speed;
+    c.source.speed = Some(options.speed);
     c.detector.kind = DetectorKind::Oracle;
     c.output.preview_hz = options.preview_hz;
     c

@@ -32,7 +32,7 @@ fn oracle_config(fleet: &str, connect: &str, frames: u64) -> EdgeConfig {
     c.zenoh.connect = vec![connect.into()];
     c.source.seed = 11;
     c.source.max_frames = Some(frames);
-    c.source.speed = 0.0;
+    c.source.speed = Some(0.0);
     c.detector.kind = DetectorKind::Oracle;
     c
 }
@@ -169,7 +169,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
         .await
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut config = oracle_config("corr", &endpoint, 900);
-    config.source.speed = 2.0;
+    config.source.speed = Some(2.0);
     let stop = Arc::new(AtomicBool::new(false));
     let edge = tokio::spawn({
         let stop = stop.clone();
@@ -288,7 +288,7 @@ async fn a_corrupt_frame_is_skipped_and_counted_and_the_rest_are_processed() -> 
     c.source.path = Some(frames.display().to_string());
     c.source.width = 128;
     c.source.height = 64;
-    c.source.speed = 0.0;
+    c.source.speed = Some(0.0);
     c.attitude.kind = AttitudeKind::Csv;
     c.attitude.path = Some(dir.path().join("att.csv"));
     c.detector.model =
@@ -351,7 +351,7 @@ async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> a
     });
 
     let mut config = oracle_config("lmtest", &endpoint, 150);
-    config.source.speed = 1.0;
+    config.source.speed = Some(1.0);
     config.output.preview_hz = 0.0;
     config.landmarks.replica = Some(dir.path().join("replica.json"));
     let edge =

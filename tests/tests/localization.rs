@@ -1,5 +1,5 @@
 //! Localization targets on the seed's field with the realistic oracle and
-//! quadrotor attitude (issue 7): ours + EKF at most 2 m RMS horizontally, and at
+//! quadrotor attitude: ours + EKF at most 2 m RMS horizontally, and at
 //! most 4 m with a fifth of the observations made false or bound to the wrong
 //! tower. The seed's method runs on the same frames for comparison.
 

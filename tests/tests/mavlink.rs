@@ -40,7 +40,7 @@ async fn gps_input_reaches_the_autopilot_with_a_fix() -> anyhow::Result<()> {
     config.zenoh.listen = vec![towernav_tests::loopback_endpoint()];
     config.detector.kind = DetectorKind::Oracle;
     config.source.max_frames = Some(300);
-    config.source.speed = 2.0;
+    config.source.speed = Some(2.0);
     config.mavlink.enabled = true;
     config.mavlink.address = format!("udpout:127.0.0.1:{port}");
     config.mavlink.rate_hz = 10.0;

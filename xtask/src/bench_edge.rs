@@ -13,11 +13,11 @@ use std::time::Duration;
 
 use anyhow::Context;
 
-use crate::{build_release, ensure_onnxruntime, run, target_dir};
+use crate::{build_release, run, target_dir};
 
-pub fn bench_edge(root: &Path) -> anyhow::Result<()> {
+pub fn bench_edge(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
+    let ort = ort.context("the bench needs ONNX Runtime")?;
     let bin = build_release(root, &["towernav-edge", "towernav-sim"])?;
-    let ort = ensure_onnxruntime(root)?;
     let work = target_dir(root).join("bench-edge");
     let config = work.join("replay.toml");
     if !config.exists() {
@@ -32,7 +32,7 @@ pub fn bench_edge(root: &Path) -> anyhow::Result<()> {
             .arg(&config)
             .args(["--speed", speed])
             .args(["--listen", &format!("tcp/127.0.0.1:{port}")])
-            .env("ORT_DYLIB_PATH", &ort)
+            .env("ORT_DYLIB_PATH", ort)
             .env("RUST_LOG", "warn");
         cmd
     };

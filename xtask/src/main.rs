@@ -21,15 +21,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Task {
     /// Fly the simulated seed flight through the whole chain and print the report.
-    Demo {
-        /// Playback speed relative to real time (0: as fast as possible, every
-        /// frame processed; 1 to watch live). Faster than the detector can go
-        /// drops frames, and the estimate drifts from the truth it is scored on.
-        #[arg(long, default_value_t = 0.0)]
-        speed: f64,
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-    },
+    Demo(DemoArgs),
     /// Open the ground station on the demo's towers, connected to the demo's edge.
     Gs,
     /// Formatting, lints and every test: what CI runs.
@@ -68,6 +60,70 @@ enum Task {
     SetupOrt,
 }
 
+#[derive(clap::Args)]
+struct DemoArgs {
+    /// Playback speed relative to real time (0: as fast as possible, every
+    /// frame processed; 1 to watch live). Faster than the detector can go
+    /// drops frames, and the estimate drifts from the truth it is scored on.
+    #[arg(long, default_value_t = 0.0)]
+    speed: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// A preset flight or a waypoint plan file (see `towernav-edge demo --help`).
+    #[arg(long)]
+    flight: Option<String>,
+    /// Fly over a random world drawn from this seed.
+    #[arg(long, conflicts_with = "world")]
+    random_world: Option<u64>,
+    /// Fly over the towers of this landmark CSV or database.
+    #[arg(long)]
+    world: Option<PathBuf>,
+    /// `yolo` (the shipped models on rendered frames) or `oracle` (no model).
+    #[arg(long, default_value = "yolo", value_parser = ["yolo", "oracle"])]
+    detector: String,
+}
+
+/// What a task needs on the machine beyond the Rust toolchain, installed
+/// before it builds anything so a fresh machine fails early or not at all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Prerequisite {
+    /// ONNX Runtime's shared library in `.ort/lib/`, for the YOLO detector.
+    OnnxRuntime,
+    /// ffmpeg, for the video source's tests.
+    Ffmpeg,
+    /// Xvfb, for the ground station's real window.
+    Xvfb,
+    /// rustfmt and clippy.
+    LintComponents,
+}
+
+impl Task {
+    fn prerequisites(&self) -> Vec<Prerequisite> {
+        use Prerequisite::*;
+        match self {
+            Self::Demo(args) if args.detector == "oracle" => vec![],
+            Self::Demo(_) | Self::BenchEdge => vec![OnnxRuntime],
+            Self::Test => vec![LintComponents, OnnxRuntime, Ffmpeg],
+            Self::Screenshot { .. } => vec![Xvfb],
+            Self::Gs | Self::Train { .. } | Self::Quantize | Self::SetupOrt => vec![],
+        }
+    }
+}
+
+/// Installs what `task` needs; returns the ONNX Runtime library when it is one.
+fn install(root: &Path, task: &Task) -> anyhow::Result<Option<PathBuf>> {
+    let mut ort = None;
+    for need in task.prerequisites() {
+        match need {
+            Prerequisite::OnnxRuntime => ort = Some(ensure_onnxruntime(root)?),
+            Prerequisite::Ffmpeg => system_packages::ensure_program("ffmpeg", "ffmpeg")?,
+            Prerequisite::Xvfb => system_packages::ensure_program("xvfb-run", "xvfb")?,
+            Prerequisite::LintComponents => ensure_components()?,
+        }
+    }
+    Ok(ort)
+}
+
 /// The ONNX Runtime release whose C API the `ort` crate's `api-31` feature speaks.
 const ONNXRUNTIME_VERSION: &str = "1.31.1";
 
@@ -76,11 +132,13 @@ fn main() -> anyhow::Result<()> {
         .parent()
         .context("xtask lives one level below the workspace root")?
         .to_path_buf();
-    match Cli::parse().task {
-        Task::Demo { speed, seed } => demo(&root, speed, seed),
+    let task = Cli::parse().task;
+    let ort = install(&root, &task)?;
+    match task {
+        Task::Demo(args) => demo(&root, &args, ort.as_deref()),
         Task::Gs => ground_station(&root),
-        Task::Test => test(&root),
-        Task::BenchEdge => bench_edge::bench_edge(&root),
+        Task::Test => test(&root, ort.as_deref()),
+        Task::BenchEdge => bench_edge::bench_edge(&root, ort.as_deref()),
         Task::Screenshot { seconds } => screenshot::screenshot(&root, seconds),
         Task::Quantize => train::quantize(&root),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
@@ -191,26 +249,45 @@ fn ensure_components() -> anyhow::Result<()> {
     Ok(())
 }
 
-fn demo(root: &Path, speed: f64, seed: u64) -> anyhow::Result<()> {
+fn demo(root: &Path, args: &DemoArgs, ort: Option<&Path>) -> anyhow::Result<()> {
     let bin = build_release(root, &["towernav-edge", "towernav-sim"])?;
     let demo_dir = target_dir(root).join("demo");
     std::fs::create_dir_all(&demo_dir)
         .with_context(|| format!("creating {}", demo_dir.display()))?;
+    // The world's towers, for the edge and for `cargo xtask gs`.
     let towers = demo_dir.join("towers.csv");
+    let mut world = Vec::new();
+    if let Some(seed) = args.random_world {
+        world.extend(["--random-world".into(), seed.to_string()]);
+    }
+    if let Some(path) = &args.world {
+        world.extend(["--world".into(), path.display().to_string()]);
+    }
     run(Command::new(bin.join("towernav-sim"))
         .arg("world")
+        .args(&world)
         .arg("--out")
         .arg(&towers))?;
-    run(Command::new(bin.join("towernav-edge"))
-        .args([
-            "demo",
-            "--speed",
-            &speed.to_string(),
-            "--seed",
-            &seed.to_string(),
-        ])
-        .arg("--landmarks")
-        .arg(&towers))
+    let mut edge = Command::new(bin.join("towernav-edge"));
+    edge.args([
+        "demo",
+        "--speed",
+        &args.speed.to_string(),
+        "--seed",
+        &args.seed.to_string(),
+        "--detector",
+        &args.detector,
+    ])
+    .args(&world)
+    .arg("--landmarks")
+    .arg(&towers);
+    if let Some(flight) = &args.flight {
+        edge.args(["--flight", flight]);
+    }
+    if let Some(ort) = ort {
+        edge.env("ORT_DYLIB_PATH", ort);
+    }
+    run(&mut edge)
 }
 
 fn ground_station(root: &Path) -> anyhow::Result<()> {
@@ -234,8 +311,8 @@ fn ground_station(root: &Path) -> anyhow::Result<()> {
     run(&mut cmd)
 }
 
-fn test(root: &Path) -> anyhow::Result<()> {
-    ensure_components()?;
+fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
+    let ort = ort.context("the tests need ONNX Runtime")?;
     cargo(root, &["fmt", "--all", "--", "--check"])?;
     cargo(
         root,
@@ -248,13 +325,51 @@ fn test(root: &Path) -> anyhow::Result<()> {
             "warnings",
         ],
     )?;
-    let ort = ensure_onnxruntime(root)?;
-    // The video source's tests run the ffmpeg program.
-    system_packages::ensure_program("ffmpeg", "ffmpeg")?;
     run(
         Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
             .args(["test", "--workspace", "--no-fail-fast"])
             .env("ORT_DYLIB_PATH", ort)
             .current_dir(root),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn task(args: &[&str]) -> Task {
+        Cli::parse_from(std::iter::once("xtask").chain(args.iter().copied())).task
+    }
+
+    #[test]
+    fn the_demo_installs_onnx_runtime_before_it_builds() {
+        assert!(
+            task(&["demo"])
+                .prerequisites()
+                .contains(&Prerequisite::OnnxRuntime)
+        );
+        assert!(
+            task(&["demo", "--random-world", "3", "--flight", "plan.toml"])
+                .prerequisites()
+                .contains(&Prerequisite::OnnxRuntime)
+        );
+        assert_eq!(
+            task(&["demo", "--detector", "oracle"]).prerequisites(),
+            vec![],
+            "the oracle runs no model"
+        );
+        let test = task(&["test"]).prerequisites();
+        for need in [
+            Prerequisite::OnnxRuntime,
+            Prerequisite::Ffmpeg,
+            Prerequisite::LintComponents,
+        ] {
+            assert!(test.contains(&need), "{need:?}");
+        }
+        assert!(
+            task(&["bench-edge"])
+                .prerequisites()
+                .contains(&Prerequisite::OnnxRuntime)
+        );
+    }
 }

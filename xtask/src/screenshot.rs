@@ -8,14 +8,12 @@ use std::process::{Command, Stdio};
 
 use anyhow::{Context, bail};
 
-use crate::system_packages::ensure_program;
 use crate::{build_release, run, target_dir};
 
 /// A loopback port of its own, so a running demo (7447) is not disturbed.
 const EDGE_ENDPOINT: &str = "tcp/127.0.0.1:17480";
 
 pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
-    ensure_program("xvfb-run", "xvfb")?;
     let bin = build_release(
         root,
         &["towernav-edge", "towernav-sim", "towernav-ground-station"],

@@ -12,18 +12,19 @@ use nalgebra::{Point3, Vector3};
 use towernav_geometry::{Datum, Geodetic, Intrinsics, PinholeCamera};
 use towernav_protocol::NodeId;
 use towernav_protocol::session::Endpoints;
+use towernav_sim::waypoints::{FlightPlan, PlanSource, along_longest_line};
+use towernav_sim::world::WorldParams;
 use towernav_sim::{Scenario, World};
 
 use super::collector::{PoseCollector, wait_for_peer};
 use super::daemon::attitude::{AttitudeLog, AttitudeSource, MavlinkAttitude};
-use super::daemon::config::{AttitudeKind, DetectorKind, EdgeConfig, SourceKind};
+use super::daemon::config::{AttitudeKind, DetectorKind, EdgeConfig, SourceKind, SourceSection};
 use super::daemon::mavlink_out::MavlinkOut;
-use super::daemon::run::{RunOptions, RunSummary, percentiles, run};
+use super::daemon::run::{RunOptions, RunSummary, drop_advice, dropped_share, percentiles, run};
 use super::daemon::source::{FfmpegSource, FrameSource, ImageFolderSource, SimRender, SimSource};
 use super::daemon::worker::Worker;
 use super::demo_plots;
 use super::landmark_sync::LandmarkSync;
-use super::landmarks_source::load_landmarks;
 use super::node::{EdgeNode, open_session, open_session_as};
 use super::progress::bar;
 use super::yolo::{DetectorOptions, YoloDetector};
@@ -49,10 +50,7 @@ pub async fn run_edge(
     let fleet = NodeId::new(config.fleet.clone())?;
     let uav = NodeId::new(config.uav.clone())?;
     let scenario = match config.source.kind {
-        SourceKind::Sim => Some(Arc::new(match &config.source.flight {
-            Some(plan) => Scenario::preset(World::seed_field(), plan, config.source.seed)?,
-            None => Scenario::seed(config.source.seed),
-        })),
+        SourceKind::Sim => Some(Arc::new(sim_scenario(&config.source)?)),
         _ => None,
     };
     let (camera, datum, takeoff_in_world) = match (&scenario, config.pipeline.takeoff) {
@@ -115,7 +113,7 @@ pub async fn run_edge(
     };
     let records = match (&sync, &config.landmarks.file, &scenario) {
         (Some(sync), _, _) => sync.replica().records(),
-        (None, Some(path), _) => load_landmarks(path)?,
+        (None, Some(path), _) => towernav_landmark_db::load_towers(path)?,
         (None, None, Some(s)) => s.world.landmarks(),
         (None, None, None) => {
             anyhow::bail!("a real source needs landmarks: set landmarks.file or landmarks.replica")
@@ -238,9 +236,7 @@ pub async fn run_edge(
         None
     };
     let options = RunOptions {
-        // Live cameras pace themselves; recorded sources play at `speed` (0: every frame, as fast as it goes).
-        speed: (!matches!(config.source.kind, SourceKind::Rtsp | SourceKind::V4l2))
-            .then_some(config.source.speed),
+        pacing: config.source.pacing(),
         queue: config.source.queue,
         detector_name,
         jsonl: config.output.jsonl.clone(),
@@ -292,7 +288,8 @@ pub async fn run_edge(
             }
             let report = FlightReport::new(&summary.record, &received, scenario.fps);
             println!(
-                "\ntowernav demo report (seed field, {} towers, seed {})\n{report}",
+                "\ntowernav demo report ({}, {} towers, seed {})\n{report}",
+                world_name(&config.source),
                 scenario.world.towers.len(),
                 config.source.seed
             );
@@ -325,8 +322,58 @@ pub async fn run_edge(
             peak_rss_mb().map_or_else(|| "unknown".into(), |mb| format!("{mb:.0} MB"))
         ),
     }
+    if let Some(share) = dropped_share(summary.dropped, summary.record.frames) {
+        println!("warning: {}", drop_advice(share, config.source.pacing()));
+    }
     summary.latency_ms = latency;
     Ok(summary)
+}
+
+/// The simulated flight `source` asks for: its world (the seed's field, a
+/// random one, or one built from a landmark file) and its flight (a preset, a
+/// plan file, or by default the skeleton's level flight over the seed's field
+/// and a pass along the longest line over any other world).
+pub fn sim_scenario(source: &SourceSection) -> anyhow::Result<Scenario> {
+    let world = match (&source.world, source.random_world) {
+        (Some(path), _) => {
+            let towers = towernav_landmark_db::load_towers(path)?;
+            World::from_landmarks(&towers)
+                .with_context(|| format!("building a world from {}", path.display()))?
+        }
+        (None, Some(seed)) => World::random(seed, &WorldParams::default()),
+        (None, None) => World::seed_field(),
+    };
+    let seed = source.seed;
+    let plan = match &source.flight {
+        Some(flight) => match PlanSource::parse(flight) {
+            PlanSource::Preset(name) => FlightPlan::preset(&name)?,
+            PlanSource::File(path) => {
+                let text = std::fs::read_to_string(&path).with_context(|| {
+                    format!(
+                        "reading the flight plan {} (not a preset either: {})",
+                        path.display(),
+                        towernav_sim::waypoints::PRESETS.map(|(n, _)| n).join(", ")
+                    )
+                })?;
+                FlightPlan::parse(&text, &path.display().to_string())?
+            }
+        },
+        None if source.world.is_none() && source.random_world.is_none() => {
+            return Ok(Scenario::seed(seed));
+        }
+        None => along_longest_line(&world)
+            .context("the world has no line of two towers to fly along; give source.flight")?,
+    };
+    Ok(Scenario::flying(world, &plan, seed))
+}
+
+/// The process's peak resident set/// The world a simulated source flies over, for the report.
+fn world_name(source: &SourceSection) -> String {
+    match (&source.world, source.random_world) {
+        (Some(path), _) => format!("towers of {}", path.display()),
+        (None, Some(seed)) => format!("random world {seed}"),
+        (None, None) => "seed field".into(),
+    }
 }
 
 /// The process's peak resident set (VmHWM), from /proc on Linux.

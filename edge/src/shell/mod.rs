@@ -9,7 +9,6 @@ pub mod edge_cmd;
 pub mod error;
 pub mod flight_record;
 pub mod landmark_sync;
-pub mod landmarks_source;
 pub mod loc_eval_cmd;
 pub mod loc_plots;
 pub mod node;

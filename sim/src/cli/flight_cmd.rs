@@ -5,6 +5,7 @@ use std::path::Path;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use towernav_sim::replay::ReplaySource;
 use towernav_sim::{Conditions, Renderer, Scenario};
 
 use crate::cli::mot;
@@ -20,16 +21,18 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-/// Write `trajectory.csv`, `truth.csv`, `mot/<name>/` and, with `images`,
-/// `mot/<name>/img1/*.jpg` plus what replaying them through the edge daemon as a
-/// real camera needs: `attitude.csv` (the IMU as an autopilot logs it),
-/// `towers.csv` and `replay.toml` (`towernav-edge run --config replay.toml`).
+/// Write `trajectory.csv`, `truth.csv`, `mot/<name>/`, `attitude.csv` (the
+/// IMU as an autopilot logs it), `towers.csv` and `replay.toml`
+/// (`towernav-edge run --config replay.toml`). With `images`, every frame goes
+/// to `mot/<name>/img1/*.jpg` and the replay reads them as a real camera;
+/// without, it flies the same simulated flight with the oracle detector.
 pub fn write_flight(
     scenario: &Scenario,
     name: &str,
     out: &Path,
     images: bool,
     conditions: &Conditions,
+    replay: &ReplaySource,
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let traj_path = out.join("trajectory.csv");
@@ -132,9 +135,13 @@ pub fn write_flight(
     traj.flush()?;
     truth_csv.flush()?;
     attitude_csv.flush()?;
-    if images {
-        write_replay_config(scenario, out, &img_dir, &attitude_path)?;
-    }
+    let towers = write_towers(scenario, out)?;
+    let camera = ReplaySource::Camera {
+        images: absolute(&img_dir),
+        attitude_log: absolute(&attitude_path),
+    };
+    let source = if images { &camera } else { replay };
+    write_replay_config(scenario, out, &towers, source)?;
     let k = &scenario.camera.intrinsics;
     mot::write_sequence(
         &seq_dir,
@@ -146,42 +153,28 @@ pub fn write_flight(
     )
 }
 
-/// The towers and an edge-daemon config that replays the rendered frames as a
-/// camera: image folder, attitude log, landmark file, and the takeoff fix.
-fn write_replay_config(
-    scenario: &Scenario,
-    out: &Path,
-    img_dir: &Path,
-    attitude: &Path,
-) -> anyhow::Result<()> {
+/// The world's towers as the landmark file the replay localizes against.
+fn write_towers(scenario: &Scenario, out: &Path) -> anyhow::Result<std::path::PathBuf> {
     let towers = out.join("towers.csv");
     let file =
         std::fs::File::create(&towers).with_context(|| format!("creating {}", towers.display()))?;
     towernav_landmark_db::export_csv(&scenario.world.landmarks(), file)
         .with_context(|| format!("writing {}", towers.display()))?;
-    let takeoff = scenario.world.datum.to_geodetic(&scenario.start_in_world());
-    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let k = &scenario.camera.intrinsics;
-    let hfov_deg = (2.0 * (f64::from(k.width) / (2.0 * k.fx)).atan()).to_degrees();
-    let toml = format!(
-        "# Replays this flight's rendered frames through the edge daemon as a real camera:\n\
-         #   towernav-edge run --config {config}\n\
-         [source]\nkind = \"images\"\npath = {img:?}\nfps = {fps}\nwidth = {w}\nheight = {h}\n\n\
-         [camera]\nhfov_deg = {hfov_deg:.4}\n\n\
-         [attitude]\nkind = \"csv\"\npath = {att:?}\n\n\
-         [landmarks]\nfile = {towers:?}\n\n\
-         [pipeline]\ntakeoff = [{lat:.9}, {lon:.9}, {alt:.3}]\n",
-        config = abs(&out.join("replay.toml")).display(),
-        img = abs(img_dir).display().to_string(),
-        fps = scenario.fps,
-        w = k.width,
-        h = k.height,
-        att = abs(attitude).display().to_string(),
-        towers = abs(&towers).display().to_string(),
-        lat = takeoff.lat_deg,
-        lon = takeoff.lon_deg,
-        alt = takeoff.height_m,
-    );
+    Ok(towers)
+}
+
+fn absolute(p: &Path) -> std::path::PathBuf {
+    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+/// `replay.toml` beside the flight's files, every path in it absolute.
+fn write_replay_config(
+    scenario: &Scenario,
+    out: &Path,
+    towers: &Path,
+    source: &ReplaySource,
+) -> anyhow::Result<()> {
     let path = out.join("replay.toml");
-    std::fs::write(&path, toml).with_context(|| format!("writing {}", path.display()))
+    let text = source.config_toml(scenario, &absolute(&path), &absolute(towers));
+    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
 }

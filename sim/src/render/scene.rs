@@ -125,24 +125,45 @@ impl Scene<'_> {
         paint
     }
 
-    /// Stroke a path of `width_m` at `depth_m`: thinner than a pixel becomes a
-    /// one-pixel line with its coverage as alpha.
+    /// Stroke `segments` (pixels) of `width_m` at `depth_m`: thinner than a
+    /// pixel becomes a one-pixel line with its coverage as alpha. Each segment
+    /// is first clipped to the image and a band around it wider than the
+    /// stroke: a member beside the camera projects hundreds of thousands of
+    /// pixels out, and one whose near-plane clip leaves no length there has
+    /// nothing to stroke (tiny-skia refuses such a path).
     fn stroke(
         &self,
         pixmap: &mut Pixmap,
-        pb: PathBuilder,
+        segments: &[(Point2<f64>, Point2<f64>)],
         rgb: [f32; 3],
         width_m: f64,
         depth_m: f64,
         distance_m: f64,
     ) {
-        let Some(path) = pb.finish() else { return };
         let width_px = (width_m * self.camera.intrinsics.fx / depth_m.max(NEAR_M)) as f32;
         let (width, alpha) = if width_px < 1.0 {
             (1.0, width_px.max(0.12))
         } else {
             (width_px, 1.0)
         };
+        let k = &self.camera.intrinsics;
+        let band = f64::from(width) + 16.0;
+        let view = ClipRect {
+            left: -band,
+            top: -band,
+            right: f64::from(k.width) + band,
+            bottom: f64::from(k.height) + band,
+        };
+        let mut pb = PathBuilder::new();
+        for (a, b) in segments {
+            if let Some((a, b)) = view.clip(a, b)
+                && (b - a).norm() >= MIN_SEGMENT_PX
+            {
+                pb.move_to(a.x as f32, a.y as f32);
+                pb.line_to(b.x as f32, b.y as f32);
+            }
+        }
+        let Some(path) = pb.finish() else { return };
         let stroke = Stroke {
             width,
             line_cap: LineCap::Butt,
@@ -155,24 +176,30 @@ impl Scene<'_> {
     fn draw_tower(&self, pixmap: &mut Pixmap, tower: &TowerGeometry) {
         let depth = self.depth(&tower.axis_mid_in_world);
         let distance = depth.max(1.0);
+        let mut segments = Vec::with_capacity(tower.members.len());
         for kind in MemberKind::ALL {
-            let mut pb = PathBuilder::new();
-            for (k, a, b) in &tower.members {
-                if *k != kind {
-                    continue;
-                }
-                if let Some((pa, pb2)) = self.segment(a, b) {
-                    pb.move_to(pa.x as f32, pa.y as f32);
-                    pb.line_to(pb2.x as f32, pb2.y as f32);
-                }
-            }
+            segments.clear();
+            segments.extend(
+                tower
+                    .members
+                    .iter()
+                    .filter(|(k, _, _)| *k == kind)
+                    .filter_map(|(_, a, b)| self.segment(a, b)),
+            );
             let rgb = match kind {
                 MemberKind::Leg => [0.52, 0.54, 0.56],
                 MemberKind::Brace => [0.62, 0.64, 0.66],
                 MemberKind::Arm => [0.58, 0.60, 0.62],
                 MemberKind::Insulator => [0.20, 0.24, 0.30],
             };
-            self.stroke(pixmap, pb, rgb, kind.width_m(), depth.max(2.0), distance);
+            self.stroke(
+                pixmap,
+                &segments,
+                rgb,
+                kind.width_m(),
+                depth.max(2.0),
+                distance,
+            );
         }
     }
 
@@ -180,17 +207,14 @@ impl Scene<'_> {
     /// a span can run from beside the camera to hundreds of metres away.
     fn draw_span(&self, pixmap: &mut Pixmap, span: &Span) {
         for pair in span.points_in_world.windows(2) {
-            let Some((a, b)) = self.segment(&pair[0], &pair[1]) else {
+            let Some(piece) = self.segment(&pair[0], &pair[1]) else {
                 continue;
             };
             let depth = self
                 .depth(&nalgebra::center(&pair[0], &pair[1]))
                 .max(NEAR_M);
-            let mut pb = PathBuilder::new();
-            pb.move_to(a.x as f32, a.y as f32);
-            pb.line_to(b.x as f32, b.y as f32);
             // Conductors are ~3 cm across: faint hairlines except close up.
-            self.stroke(pixmap, pb, [0.25, 0.25, 0.28], 0.03, depth, depth);
+            self.stroke(pixmap, &[piece], [0.25, 0.25, 0.28], 0.03, depth, depth);
         }
     }
 
@@ -206,12 +230,8 @@ impl Scene<'_> {
                 crown_radius_m,
             } => {
                 let crown = foot_in_world + Vector3::new(0.0, 0.0, height_m - crown_radius_m);
-                let mut trunk = PathBuilder::new();
-                if let Some((a, b)) = self.segment(&foot_in_world, &crown) {
-                    trunk.move_to(a.x as f32, a.y as f32);
-                    trunk.line_to(b.x as f32, b.y as f32);
-                }
-                self.stroke(pixmap, trunk, [0.30, 0.22, 0.15], 0.4, depth, depth);
+                let trunk: Vec<_> = self.segment(&foot_in_world, &crown).into_iter().collect();
+                self.stroke(pixmap, &trunk, [0.30, 0.22, 0.15], 0.4, depth, depth);
                 let centre = self.camera_from_world * crown;
                 if let Some(c) = self.pixel(&centre) {
                     let r = (crown_radius_m * self.camera.intrinsics.fx / centre.z) as f32;
@@ -251,17 +271,14 @@ impl Scene<'_> {
                 // A cross-bar 0.6 m below the top, 1.6 m wide.
                 let bar_centre = top - Vector3::new(0.0, 0.0, 0.6);
                 let half_bar = Vector3::new(0.0, 0.8, 0.0);
-                let mut pb = PathBuilder::new();
-                for (a, b) in [
+                let pole: Vec<_> = [
                     (foot_in_world, top),
                     (bar_centre - half_bar, bar_centre + half_bar),
-                ] {
-                    if let Some((pa, pb2)) = self.segment(&a, &b) {
-                        pb.move_to(pa.x as f32, pa.y as f32);
-                        pb.line_to(pb2.x as f32, pb2.y as f32);
-                    }
-                }
-                self.stroke(pixmap, pb, [0.42, 0.36, 0.30], 0.3, depth, depth);
+                ]
+                .iter()
+                .filter_map(|(a, b)| self.segment(a, b))
+                .collect();
+                self.stroke(pixmap, &pole, [0.42, 0.36, 0.30], 0.3, depth, depth);
             }
         }
     }
@@ -328,6 +345,47 @@ impl Scene<'_> {
     }
 }
 
+/// Pieces shorter than this, pixels, have no direction to stroke across.
+const MIN_SEGMENT_PX: f64 = 1e-3;
+
+/// An axis-aligned rectangle in pixels that segments are clipped to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ClipRect {
+    left: f64,
+    top: f64,
+    right: f64,
+    bottom: f64,
+}
+
+impl ClipRect {
+    /// The part of segment `a`-`b` inside the rectangle (Liang-Barsky);
+    /// `None` when none of it is.
+    fn clip(&self, a: &Point2<f64>, b: &Point2<f64>) -> Option<(Point2<f64>, Point2<f64>)> {
+        let d = b - a;
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for (p, q) in [
+            (-d.x, a.x - self.left),
+            (d.x, self.right - a.x),
+            (-d.y, a.y - self.top),
+            (d.y, self.bottom - a.y),
+        ] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return None;
+                }
+            } else {
+                let t = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(t);
+                } else {
+                    t1 = t1.min(t);
+                }
+            }
+        }
+        (t0 <= t1 && t0.is_finite() && t1.is_finite()).then(|| (a + d * t0, a + d * t1))
+    }
+}
+
 /// Andrew's monotone chain: the convex hull, counter-clockwise.
 fn convex_hull(points: &[Point2<f64>]) -> Vec<Point2<f64>> {
     let mut pts: Vec<Point2<f64>> = points.to_vec();
@@ -354,4 +412,63 @@ fn convex_hull(points: &[Point2<f64>]) -> Vec<Point2<f64>> {
     }
     hull.pop();
     hull
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    const VIEW: ClipRect = ClipRect {
+        left: -10.0,
+        top: -10.0,
+        right: 1290.0,
+        bottom: 730.0,
+    };
+
+    fn inside(p: &Point2<f64>) -> bool {
+        let e = 1e-6;
+        p.x >= VIEW.left - e
+            && p.x <= VIEW.right + e
+            && p.y >= VIEW.top - e
+            && p.y <= VIEW.bottom + e
+    }
+
+    #[test]
+    fn a_segment_from_far_outside_is_cut_at_the_band() {
+        let (a, b) = VIEW
+            .clip(&Point2::new(98439.6, 360.0), &Point2::new(640.0, 360.0))
+            .expect("crosses the view");
+        assert!((a.x - VIEW.right).abs() < 1e-9 && (b.x - 640.0).abs() < 1e-12);
+        assert_eq!(
+            VIEW.clip(
+                &Point2::new(98439.6, 64017.1),
+                &Point2::new(85643.4, 64017.1)
+            ),
+            None,
+            "wholly outside"
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn clipped_pieces_lie_inside_and_on_the_segment(
+            ax in -5e5..5e5f64, ay in -5e5..5e5f64, bx in -5e5..5e5f64, by in -5e5..5e5f64,
+        ) {
+            let (a, b) = (Point2::new(ax, ay), Point2::new(bx, by));
+            if let Some((p, q)) = VIEW.clip(&a, &b) {
+                prop_assert!(inside(&p) && inside(&q));
+                // Both ends are on the segment a-b.
+                for x in [p, q] {
+                    let along = (x - a).dot(&(b - a)) / (b - a).norm_squared().max(1e-300);
+                    let off = (a + (b - a) * along - x).norm();
+                    prop_assert!((-1e-9..=1.0 + 1e-9).contains(&along) && off < 1e-6 * (1.0 + (b - a).norm()));
+                }
+            } else {
+                // Nothing of it is inside: its midpoint and ends are out.
+                prop_assert!(!inside(&a) && !inside(&b) && !inside(&nalgebra::center(&a, &b)));
+            }
+        }
+    }
 }

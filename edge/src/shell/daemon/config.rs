@@ -76,16 +76,58 @@ pub struct SourceSection {
     /// Frames are scaled to this size (the camera model's).
     pub width: u32,
     pub height: u32,
-    /// The simulator's flight plan (seed-path-1, seed-path-2, straight, out-and-back,
-    /// lawnmower); none: the skeleton's level flight.
+    /// The simulator's flight: a preset (seed-path-1, seed-path-2, straight,
+    /// out-and-back, lawnmower) or a waypoint plan file (`.toml`, in the
+    /// world's ENU metres). None: the skeleton's level flight over the seed's
+    /// field, a pass along the longest line over any other world.
     pub flight: Option<String>,
+    /// The simulator's world from a landmark CSV or database (positions,
+    /// heights, types; lines by `line_name`); none: the seed's field.
+    pub world: Option<PathBuf>,
+    /// The simulator's world drawn at random from this seed.
+    pub random_world: Option<u64>,
     pub seed: u64,
     /// Stop after this many frames.
     pub max_frames: Option<u64>,
-    /// Playback speed of the simulator relative to real time; 0: as fast as it can.
-    pub speed: f64,
+    /// Playback speed relative to real time, for recorded sources; when
+    /// behind, the oldest frame is dropped. 0: every frame, as fast as the
+    /// pipeline goes. Unset: 4 for the simulator, 0 for an image folder or a
+    /// video file. Live cameras (`rtsp`, `v4l2`) pace themselves.
+    pub speed: Option<f64>,
     /// Frames waiting for the pipeline; when full, the oldest is dropped.
     pub queue: usize,
+}
+
+/// How frames are fed to the pipeline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// Every frame, as fast as the pipeline goes; none is dropped.
+    EveryFrame,
+    /// At this multiple of the source's clock; the oldest frame is dropped when behind.
+    Speed(f64),
+    /// A live camera: frames arrive at their own pace; the oldest is dropped when behind.
+    Live,
+}
+
+/// The simulator's default playback speed: fast enough to watch a whole flight
+/// in a quarter of its time.
+pub const SIM_DEFAULT_SPEED: f64 = 4.0;
+
+impl SourceSection {
+    /// What `speed` means for this kind of source, its default applied.
+    pub fn pacing(&self) -> Pacing {
+        let speed = match (self.kind, self.speed) {
+            (SourceKind::Rtsp | SourceKind::V4l2, _) => return Pacing::Live,
+            (_, Some(speed)) => speed,
+            (SourceKind::Sim, None) => SIM_DEFAULT_SPEED,
+            (SourceKind::Images | SourceKind::Video, None) => 0.0,
+        };
+        if speed > 0.0 {
+            Pacing::Speed(speed)
+        } else {
+            Pacing::EveryFrame
+        }
+    }
 }
 
 /// The camera model for real sources (the simulator brings its own).
@@ -247,9 +289,11 @@ impl Default for SourceSection {
             width: 1280,
             height: 720,
             flight: None,
+            world: None,
+            random_world: None,
             seed: 1,
             max_frames: None,
-            speed: 4.0,
+            speed: None,
             queue: 2,
         }
     }
@@ -363,8 +407,28 @@ impl EdgeConfig {
                 format!("{}x{} is not a camera size", s.width, s.height),
             );
         }
-        if s.speed.is_nan() || s.speed < 0.0 {
-            return invalid("source.speed", format!("{} must be 0 or more", s.speed));
+        if let Some(speed) = s.speed {
+            if speed.is_nan() || speed < 0.0 {
+                return invalid("source.speed", format!("{speed} must be 0 or more"));
+            }
+            if matches!(s.kind, SourceKind::Rtsp | SourceKind::V4l2) {
+                return invalid(
+                    "source.speed",
+                    format!("a live {:?} camera paces itself; remove the speed", s.kind),
+                );
+            }
+        }
+        if s.kind != SourceKind::Sim && (s.world.is_some() || s.random_world.is_some()) {
+            return invalid(
+                "source.world",
+                "a world is for the simulator (source.kind = \"sim\")".into(),
+            );
+        }
+        if s.world.is_some() && s.random_world.is_some() {
+            return invalid(
+                "source.world",
+                "give a world file or a random world's seed, not both".into(),
+            );
         }
         if s.queue == 0 || s.queue > 64 {
             return invalid("source.queue", format!("{} is not in 1..=64", s.queue));
@@ -487,12 +551,45 @@ mod tests {
     }
 
     #[test]
+    fn recorded_frames_are_all_processed_unless_pacing_is_asked_for() {
+        let source = |text: &str| EdgeConfig::parse(text).expect("parses").source;
+        let images = "[source]\nkind = \"images\"\npath = \"f\"\n";
+        assert_eq!(source(images).pacing(), Pacing::EveryFrame);
+        let video = "[source]\nkind = \"video\"\npath = \"f.mp4\"\n";
+        assert_eq!(source(video).pacing(), Pacing::EveryFrame);
+        assert_eq!(
+            source(&format!("{images}speed = 1\n")).pacing(),
+            Pacing::Speed(1.0)
+        );
+        assert_eq!(
+            source("").pacing(),
+            Pacing::Speed(SIM_DEFAULT_SPEED),
+            "the simulator keeps its default"
+        );
+        assert_eq!(source("[source]\nspeed = 0\n").pacing(), Pacing::EveryFrame);
+        let rtsp = "[source]\nkind = \"rtsp\"\npath = \"rtsp://cam\"\n";
+        assert_eq!(source(rtsp).pacing(), Pacing::Live);
+    }
+
+    #[test]
     fn mistakes_are_named() {
         let err = EdgeConfig::parse("[source]\nfsp = 30\n").expect_err("typo");
         assert!(err.contains("fsp"), "{err}");
         let err = EdgeConfig::parse("[source]\nfps = \"fast\"\n").expect_err("type");
         assert!(err.contains("fps"), "{err}");
-        let cases: [(&str, &str); 8] = [
+        let cases: [(&str, &str); 11] = [
+            (
+                "[source]\nkind = \"v4l2\"\npath = \"/dev/video0\"\nspeed = 2\n",
+                "source.speed",
+            ),
+            (
+                "[source]\nkind = \"images\"\npath = \"x\"\nrandom_world = 3\n",
+                "source.world",
+            ),
+            (
+                "[source]\nworld = \"t.csv\"\nrandom_world = 3\n",
+                "source.world",
+            ),
             ("[source]\nkind = \"video\"\n", "source.path"),
             (
                 "[detector]\ndetector_type_weight = 1.5\n",

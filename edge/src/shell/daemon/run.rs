@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use towernav_geometry::Datum;
 use towernav_protocol::{Health, StatusHeartbeat, TruthPose};
 
+use super::config::Pacing;
 use super::mavlink_out::MavlinkOut;
 use super::queue::DropOldest;
 use super::source::{CapturedFrame, FrameSource};
@@ -22,10 +23,8 @@ use crate::shell::node::EdgeNode;
 
 /// How the shell around the worker behaves.
 pub struct RunOptions {
-    /// Recorded sources: play at this multiple of real time, dropping the oldest
-    /// frame when behind; 0 plays every frame as fast as the pipeline goes.
-    /// `None` (live cameras): frames come at their own pace, oldest dropped when behind.
-    pub speed: Option<f64>,
+    /// Every frame, at a multiple of the source's clock, or a live camera's pace.
+    pub pacing: Pacing,
     pub queue: usize,
     /// The detector, for the status: "oracle" or the model's file name.
     pub detector_name: String,
@@ -60,8 +59,11 @@ pub async fn run(
     let failed_source = Arc::new(std::sync::atomic::AtomicU64::new(0));
     let source_thread = {
         let (queue, stop, failed) = (queue.clone(), stop.clone(), failed_source.clone());
-        let speed = options.speed.filter(|s| *s > 0.0);
-        let paced = options.speed.is_none() || speed.is_some();
+        let speed = match options.pacing {
+            Pacing::Speed(speed) => Some(speed),
+            Pacing::EveryFrame | Pacing::Live => None,
+        };
+        let paced = options.pacing != Pacing::EveryFrame;
         std::thread::Builder::new()
             .name("frame-source".into())
             .spawn(move || {
@@ -116,6 +118,7 @@ pub async fn run(
     let mut frames_since_status = 0u64;
     // Dropped + failed at the last status: health reflects the last period only.
     let mut troubles_at_status = 0u64;
+    let mut warned_drops = false;
     let wall = Instant::now();
     while let Some(p) = out_rx.recv().await {
         if let Some(sync) = sync.as_deref_mut()
@@ -203,6 +206,15 @@ pub async fn run(
                 detector: options.detector_name.clone(),
             })
             .await?;
+            if !warned_drops && let Some(share) = dropped_share(dropped, record.frames) {
+                warned_drops = true;
+                tracing::warn!(
+                    dropped,
+                    processed = record.frames,
+                    "{}",
+                    drop_advice(share, options.pacing)
+                );
+            }
             window.clear();
             troubles_at_status = dropped + failed;
             last_status = Instant::now();
@@ -231,13 +243,42 @@ pub async fn run(
         record,
         latency_ms,
     };
-    tracing::info!(
-        frames = summary.record.frames,
-        dropped = summary.dropped,
-        failed = summary.failed,
-        "edge daemon stopped"
-    );
+    match dropped_share(summary.dropped, summary.record.frames) {
+        Some(share) => tracing::warn!(
+            frames = summary.record.frames,
+            dropped = summary.dropped,
+            failed = summary.failed,
+            "edge daemon stopped; {}",
+            drop_advice(share, options.pacing)
+        ),
+        None => tracing::info!(
+            frames = summary.record.frames,
+            dropped = summary.dropped,
+            failed = summary.failed,
+            "edge daemon stopped"
+        ),
+    }
     Ok(summary)
+}
+
+/// Share of the source's frames that the queue dropped, when over 1 %: enough
+/// that a replay is no longer the flight it recorded.
+pub fn dropped_share(dropped: u64, processed: u64) -> Option<f64> {
+    let seen = dropped + processed;
+    let share = dropped as f64 / seen.max(1) as f64;
+    (share > 0.01).then_some(share)
+}
+
+/// What to say about a share of dropped frames, and what to do about it.
+pub fn drop_advice(share: f64, pacing: Pacing) -> String {
+    let cause = match pacing {
+        Pacing::Speed(speed) => format!(
+            "the pipeline is slower than the source played at {speed}x; `--speed 0` processes every frame"
+        ),
+        Pacing::Live => "the pipeline is slower than the camera's frame rate".into(),
+        Pacing::EveryFrame => "frames were dropped although every frame was asked for".into(),
+    };
+    format!("{:.1} % of frames were dropped: {cause}", share * 100.0)
 }
 
 /// p50 and p99 of `values` (sorted in place); zeros when empty.
@@ -248,4 +289,22 @@ pub fn percentiles(values: &mut [f64]) -> (f64, f64) {
     values.sort_by(f64::total_cmp);
     let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
     (at(0.5), at(0.99))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dropping_over_one_percent_is_told_with_its_cure() {
+        assert_eq!(dropped_share(1, 199), None, "0.5 %");
+        assert_eq!(dropped_share(0, 0), None);
+        let share = dropped_share(75, 25).expect("75 %");
+        assert!((share - 0.75).abs() < 1e-12);
+        let advice = drop_advice(share, Pacing::Speed(4.0));
+        assert!(
+            advice.contains("75.0 %") && advice.contains("--speed 0"),
+            "{advice}"
+        );
+    }
 }
