@@ -318,10 +318,15 @@ impl GsApp {
     fn apply_editor(&mut self, action: EditorAction) {
         let author = Author::now(&self.options.operator);
         let outcome: Result<String, String> = match action {
-            EditorAction::Upsert(record) => self
+            EditorAction::Upsert(record, expect) => self
                 .db
-                .upsert(&record, &author)
-                .map(|rev| format!("saved {} (revision {rev})", record.id))
+                .upsert_expecting(&record, expect, &author)
+                .map(|rev| {
+                    // The form now stands for the record as just stored.
+                    self.editor.editing = Some(record.id.clone());
+                    self.editor.editing_revision = Some(rev);
+                    format!("saved {} (revision {rev})", record.id)
+                })
                 .map_err(|e| e.to_string()),
             EditorAction::Delete(id) => match self.db.remove(&id, &author) {
                 Ok(Some(rev)) => {

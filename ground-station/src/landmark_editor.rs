@@ -31,7 +31,9 @@ impl FileFormat {
 /// What the operator asked the database for.
 #[derive(Debug, Clone, PartialEq)]
 pub enum EditorAction {
-    Upsert(LandmarkRecord),
+    /// Save a record, expecting the stored one as it was when the form was
+    /// filled (a new id: none), so a concurrent writer's edit is not overwritten.
+    Upsert(Box<LandmarkRecord>, towernav_landmark_db::Expect),
     Delete(String),
     Import(std::path::PathBuf, FileFormat),
     Export(std::path::PathBuf, FileFormat),
@@ -144,6 +146,8 @@ pub struct EditorState {
     pub form: Form,
     /// The record being edited (its id as stored), `None` when adding.
     pub editing: Option<String>,
+    /// Its revision when the form was filled from it.
+    pub editing_revision: Option<u64>,
     pub confirm_delete: Option<String>,
     /// The outcome of the last action, for the operator: (ok, text).
     pub message: Option<(bool, String)>,
@@ -159,6 +163,7 @@ impl Default for EditorState {
             sort: (Column::Id, true),
             form: Form::default(),
             editing: None,
+            editing_revision: None,
             confirm_delete: None,
             message: None,
             io_path: String::new(),
@@ -288,6 +293,7 @@ fn table(ui: &mut egui::Ui, state: &mut EditorState, records: &[LandmarkRecord])
                     if let Some(r) = chosen {
                         state.form = Form::from_record(r);
                         state.editing = Some(r.id.clone());
+                        state.editing_revision = Some(r.revision);
                         state.confirm_delete = None;
                     }
                 });
@@ -394,7 +400,11 @@ fn form(
         if save.clicked()
             && let Ok(r) = &result
         {
-            action = Some(EditorAction::Upsert(r.clone()));
+            let expect = match (&state.editing, state.editing_revision) {
+                (Some(id), Some(rev)) if *id == r.id => towernav_landmark_db::Expect::Revision(rev),
+                _ => towernav_landmark_db::Expect::Absent,
+            };
+            action = Some(EditorAction::Upsert(Box::new(r.clone()), expect));
         }
         if ui.button("New").clicked() {
             state.form = Form::default();

@@ -117,21 +117,21 @@ pub fn import_csv(db: &mut LandmarkDb, path: &Path, author: &Author) -> Result<u
 pub fn export_csv(records: &[LandmarkRecord], output: impl Write) -> Result<(), csv::Error> {
     let mut writer = csv::Writer::from_writer(output);
     writer.write_record(REQUIRED.iter().chain(&OPTIONAL).chain(&BOOKKEEPING))?;
-    let opt =
-        |v: Option<f64>, decimals: usize| v.map_or(String::new(), |v| format!("{v:.decimals$}"));
+    // Shortest text that reads back as the same number: an export imports back unchanged.
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
     for r in records {
         writer.write_record([
             r.id.clone(),
             r.tower_type.to_string(),
-            format!("{:.9}", r.lat_deg),
-            format!("{:.9}", r.lon_deg),
-            format!("{:.3}", r.ground_elev_m),
-            format!("{:.3}", r.height_m),
-            opt(r.base_width_m, 3),
+            r.lat_deg.to_string(),
+            r.lon_deg.to_string(),
+            r.ground_elev_m.to_string(),
+            r.height_m.to_string(),
+            opt(r.base_width_m),
             r.line_name.clone().unwrap_or_default(),
             r.survey_source.clone().unwrap_or_default(),
-            opt(r.sigma_horizontal_m, 3),
-            opt(r.sigma_vertical_m, 3),
+            opt(r.sigma_horizontal_m),
+            opt(r.sigma_vertical_m),
             r.notes.clone(),
             r.updated_at_unix_s.to_string(),
             r.updated_by.clone(),

@@ -9,6 +9,27 @@ pub enum DbError {
         #[source]
         source: rusqlite::Error,
     },
+    /// Another connection held the write lock past the busy timeout.
+    #[error(
+        "landmark database {path} is locked by another writer (the ground station or another \
+         towernav-db) and stayed locked past the {}-second wait; nothing was written, try again",
+        crate::store::BUSY_TIMEOUT.as_secs()
+    )]
+    Busy { path: String },
+    /// `add` of an id that is stored already (perhaps by a concurrent writer).
+    #[error("landmark database {path}: tower {id:?} exists; use edit")]
+    Exists { path: String, id: String },
+    /// The tower changed since it was read: the write would undo someone's edit.
+    #[error(
+        "landmark database {path}: tower {id:?} changed since it was read (revision {expected}, now {}); reload and edit again",
+        found.map_or_else(|| "removed".to_string(), |f| f.to_string())
+    )]
+    Conflict {
+        path: String,
+        id: String,
+        expected: u64,
+        found: Option<u64>,
+    },
     #[error(transparent)]
     Invalid(#[from] ValidationError),
     #[error("landmark database {path} has schema version {found}; this build knows up to {known}")]
@@ -24,6 +45,30 @@ pub enum DbError {
         field: &'static str,
         reason: String,
     },
+}
+
+impl DbError {
+    /// SQLite's error on `path`, a lock held past the busy timeout told apart.
+    pub fn from_sqlite(path: &str, source: rusqlite::Error) -> Self {
+        match source.sqlite_error_code() {
+            Some(rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked) => {
+                Self::Busy { path: path.into() }
+            }
+            _ => Self::Sqlite {
+                path: path.into(),
+                source,
+            },
+        }
+    }
+
+    /// The input, not the database, is at fault: a bad record, or an id that
+    /// exists or changed.
+    pub fn is_refusal(&self) -> bool {
+        matches!(
+            self,
+            Self::Invalid(_) | Self::Exists { .. } | Self::Conflict { .. }
+        )
+    }
 }
 
 /// Why an import was refused; the database is left as it was.

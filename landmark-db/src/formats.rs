@@ -102,18 +102,24 @@ pub fn export_geojson(records: &[LandmarkRecord]) -> Result<String, serde_json::
 /// OSM XML of the towers (`power=tower` nodes, new objects with negative ids as
 /// JOSM expects), with `ref`, `height`, `ele` and the type in [`OSM_TYPE_TAG`].
 pub fn export_osm_xml(records: &[LandmarkRecord]) -> String {
+    // Tabs and line breaks as character references: literal ones in an
+    // attribute are read back as spaces. Validation keeps other control
+    // characters out of the database, as XML 1.0 cannot hold them.
     fn esc(s: &str) -> String {
         s.replace('&', "&amp;")
             .replace('<', "&lt;")
             .replace('>', "&gt;")
             .replace('"', "&quot;")
+            .replace('\t', "&#9;")
+            .replace('\n', "&#10;")
+            .replace('\r', "&#13;")
     }
     let mut out = String::from(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<osm version=\"0.6\" generator=\"towernav\">\n",
     );
     for (i, r) in records.iter().enumerate() {
         out += &format!(
-            "  <node id=\"-{}\" lat=\"{:.9}\" lon=\"{:.9}\">\n",
+            "  <node id=\"-{}\" lat=\"{}\" lon=\"{}\">\n",
             i + 1,
             r.lat_deg,
             r.lon_deg
@@ -323,7 +329,11 @@ fn osm_records(nodes: Vec<OsmNode>, mapping: &OsmMapping) -> Parsed {
                         .or_else(|| tag("operator"))
                         .unwrap_or_default(),
                 ),
-                ("survey_source", format!("OSM node {}", node.id)),
+                // A `source` tag (towernav's exports write one) else the node itself.
+                (
+                    "survey_source",
+                    tag("source").unwrap_or_else(|| format!("OSM node {}", node.id)),
+                ),
             ]);
             build_record(&at, &|name| {
                 fields.get(name).filter(|v| !v.is_empty()).cloned()

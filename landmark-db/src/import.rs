@@ -70,7 +70,35 @@ impl Default for ImportOptions {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Warning {
     pub id: String,
+    pub kind: CheckKind,
     pub message: String,
+}
+
+/// What a check is about, for summaries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum CheckKind {
+    Replaces,
+    Height,
+    Spacing,
+}
+
+impl std::fmt::Display for CheckKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Replaces => "towers replacing one stored under their id",
+            Self::Height => "heights outside their type's range",
+            Self::Spacing => "towers closer than the minimum spacing to another",
+        })
+    }
+}
+
+/// `warnings` grouped by kind, in a fixed order, each group in input order.
+pub fn checks_by_kind(warnings: &[Warning]) -> Vec<(CheckKind, Vec<&Warning>)> {
+    let mut groups: std::collections::BTreeMap<CheckKind, Vec<&Warning>> = Default::default();
+    for w in warnings {
+        groups.entry(w.kind).or_default().push(w);
+    }
+    groups.into_iter().collect()
 }
 
 impl std::fmt::Display for Warning {
@@ -152,8 +180,9 @@ pub fn likely_mistakes(
     options: &ImportOptions,
 ) -> Vec<Warning> {
     let mut warnings = Vec::new();
-    let warn = |id: &str, message: String| Warning {
+    let warn = |id: &str, kind: CheckKind, message: String| Warning {
         id: id.into(),
+        kind,
         message,
     };
     let existing_ids: std::collections::HashSet<&str> =
@@ -172,6 +201,7 @@ pub fn likely_mistakes(
         if existing_ids.contains(r.id.as_str()) {
             warnings.push(warn(
                 &r.id,
+                CheckKind::Replaces,
                 "replaces the tower already stored under this id".into(),
             ));
         }
@@ -179,6 +209,7 @@ pub fn likely_mistakes(
         if !(lo..=hi).contains(&r.height_m) {
             warnings.push(warn(
                 &r.id,
+                CheckKind::Height,
                 format!(
                     "height {} m is outside {lo}..={hi} m for type {}",
                     r.height_m, r.tower_type
@@ -190,16 +221,20 @@ pub fn likely_mistakes(
             lon_deg: r.lon_deg,
             height_m: r.ground_elev_m,
         };
-        for (i, d) in index.within(&foot, options.min_spacing_m) {
-            if after[i].id != r.id {
-                warnings.push(warn(
-                    &r.id,
-                    format!(
-                        "stands {d:.1} m from {} (closer than {} m)",
-                        after[i].id, options.min_spacing_m
-                    ),
-                ));
-            }
+        // The nearest other tower only: one line per tower, and a logarithmic
+        // search even when a file puts every tower at one spot.
+        if options.min_spacing_m.is_finite()
+            && let Some((i, d)) = index.nearest(&foot).find(|(i, _)| after[*i].id != r.id)
+            && d < options.min_spacing_m
+        {
+            warnings.push(warn(
+                &r.id,
+                CheckKind::Spacing,
+                format!(
+                    "stands {d:.1} m from {} (closer than {} m)",
+                    after[i].id, options.min_spacing_m
+                ),
+            ));
         }
     }
     warnings

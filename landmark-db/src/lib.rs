@@ -20,9 +20,15 @@ pub use csv_io::{RowProblem, export_csv, import_csv, parse_csv, read_csv};
 pub use error::{DbError, ImportError};
 pub use formats::{OSM_TYPE_TAG, OsmMapping, export_geojson, export_osm_xml};
 pub use import::{
-    Format, ImportOptions, ImportReport, Parsed, Warning, import_file, import_parsed, likely_mistakes,
+    CheckKind, Format, ImportOptions, ImportReport, Parsed, Warning, checks_by_kind, import_file,
+    import_parsed, likely_mistakes,
 };
 pub use load::load_towers;
 pub use spatial::LandmarkIndex;
-pub use store::{Author, LandmarkDb};
+pub use store::{Author, BUSY_TIMEOUT, Expect, LandmarkDb};
 pub use validate::{ValidationError, validate};
+
+#[cfg(test)]
+mod concurrency_tests;
+#[cfg(test)]
+mod round_trip_tests;

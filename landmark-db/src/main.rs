@@ -1,7 +1,8 @@
 //! `towernav-db`: survey data entry for the landmark database.
 //!
 //! Exit codes: 0 done; 1 refused (bad record, refused import, unknown or duplicate id);
-//! 2 usage error; 3 the database could not be opened, read or written.
+//! 2 usage error (a bad flag, NaN or infinity included); 3 the database could not be
+//! opened, read or written (another writer's lock held past the wait included).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -10,8 +11,8 @@ use anyhow::Context;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use comfy_table::{Table, presets::UTF8_BORDERS_ONLY};
 use towernav_landmark_db::{
-    Author, DbError, Format, ImportError, ImportOptions, LandmarkDb, OsmMapping, export_csv,
-    export_geojson, export_osm_xml, import_file, likely_mistakes, validate,
+    Author, DbError, Expect, Format, ImportError, ImportOptions, LandmarkDb, OsmMapping,
+    export_csv, export_geojson, export_osm_xml, import_file, likely_mistakes, validate,
 };
 use towernav_protocol::{LandmarkChangeOp, LandmarkRecord, TowerType};
 
@@ -46,7 +47,7 @@ enum Command {
         #[arg(long)]
         skip_invalid: bool,
         /// Flag towers closer than this to another, metres.
-        #[arg(long, default_value_t = 30.0)]
+        #[arg(long, default_value_t = 30.0, value_parser = finite_non_negative)]
         min_spacing_m: f64,
         /// OSM: a tag that chooses the tower type, as key=value=TYPE (repeatable), e.g. design=donau=A.
         #[arg(long = "osm-map", value_parser = OsmMapping::parse_rule)]
@@ -55,7 +56,7 @@ enum Command {
         #[arg(long)]
         osm_default_type: Option<TowerType>,
         /// OSM: ground elevation (WGS84 ellipsoid, m) of towers without an `ele` tag.
-        #[arg(long)]
+        #[arg(long, value_parser = finite)]
         osm_ground_elev_m: Option<f64>,
     },
     /// Export every tower; `-` writes to standard output.
@@ -97,15 +98,15 @@ struct RecordArgs {
     id: String,
     #[arg(long = "type")]
     tower_type: TowerType,
-    #[arg(long)]
+    #[arg(long, value_parser = finite)]
     lat: f64,
-    #[arg(long)]
+    #[arg(long, value_parser = finite)]
     lon: f64,
     /// Foot elevation above the WGS84 ellipsoid, metres.
-    #[arg(long)]
+    #[arg(long, value_parser = finite)]
     elev: f64,
     /// Foot to top, metres.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_non_negative)]
     height: f64,
     #[command(flatten)]
     optional: OptionalArgs,
@@ -116,13 +117,13 @@ struct EditArgs {
     id: String,
     #[arg(long = "type")]
     tower_type: Option<TowerType>,
-    #[arg(long)]
+    #[arg(long, value_parser = finite)]
     lat: Option<f64>,
-    #[arg(long)]
+    #[arg(long, value_parser = finite)]
     lon: Option<f64>,
-    #[arg(long)]
+    #[arg(long, value_parser = finite)]
     elev: Option<f64>,
-    #[arg(long)]
+    #[arg(long, value_parser = finite_non_negative)]
     height: Option<f64>,
     #[command(flatten)]
     optional: OptionalArgs,
@@ -130,17 +131,17 @@ struct EditArgs {
 
 #[derive(Args)]
 struct OptionalArgs {
-    #[arg(long)]
+    #[arg(long, value_parser = finite_non_negative)]
     base_width: Option<f64>,
     #[arg(long)]
     line: Option<String>,
     #[arg(long)]
     source: Option<String>,
     /// One-sigma horizontal survey accuracy, metres.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_non_negative)]
     sigma_h: Option<f64>,
     /// One-sigma vertical survey accuracy, metres.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_non_negative)]
     sigma_v: Option<f64>,
     #[arg(long)]
     notes: Option<String>,
@@ -165,15 +166,36 @@ struct Failure(u8, anyhow::Error);
 impl<E: Into<anyhow::Error>> From<E> for Failure {
     fn from(e: E) -> Self {
         let e = e.into();
-        let code = if e
+        // The database's own failures (locked, unreadable) are 3 whichever
+        // command met them; a bad record or id is a refusal.
+        let db = e
             .downcast_ref::<DbError>()
-            .is_some_and(|d| !matches!(d, DbError::Invalid(_)))
-        {
-            3
-        } else {
-            1
+            .or_else(|| match e.downcast_ref::<ImportError>() {
+                Some(ImportError::Db(d)) => Some(d),
+                _ => None,
+            });
+        let code = match db {
+            Some(d) if !d.is_refusal() => 3,
+            _ => 1,
         };
         Failure(code, e)
+    }
+}
+
+/// A finite number, for every numeric flag: NaN or infinity is refused with its flag's name.
+fn finite(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) => Err(format!("{v} is not a finite number")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A finite number of zero or more.
+fn finite_non_negative(text: &str) -> Result<f64, String> {
+    match finite(text)? {
+        v if v >= 0.0 => Ok(v),
+        v => Err(format!("{v} is negative")),
     }
 }
 
@@ -241,9 +263,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             for p in &report.skipped {
                 eprintln!("skipped {p}");
             }
-            for w in &report.warnings {
-                eprintln!("check {w}");
-            }
+            print_checks(&report.warnings);
             println!(
                 "imported {} towers from {} (revision {}); {} skipped, {} to check",
                 report.imported,
@@ -304,9 +324,6 @@ fn run(cli: Cli) -> Result<(), Failure> {
             println!("{}", serde_json_pretty(&r));
         }
         Command::Add(args) => {
-            if db.get(&args.id)?.is_some() {
-                return Err(refused(format!("tower {:?} exists; use `edit`", args.id)));
-            }
             let mut r = LandmarkRecord::new(
                 args.id,
                 args.tower_type,
@@ -317,22 +334,30 @@ fn run(cli: Cli) -> Result<(), Failure> {
             );
             args.optional.apply(&mut r);
             validate(&r)?;
+            // Refused inside the write if the id exists, also when a
+            // concurrent writer added it a moment ago.
+            let revision = db.upsert_expecting(&r, Expect::Absent, &author)?;
+            println!("added {} at revision {revision}", r.id);
             warn_likely_mistakes(&db, &r)?;
-            println!("added {} at revision {}", r.id, db.upsert(&r, &author)?);
         }
         Command::Edit(args) => {
-            let mut r = db
-                .get(&args.id)?
-                .ok_or_else(|| refused(format!("no tower {:?}; use `add`", args.id)))?;
-            r.tower_type = args.tower_type.unwrap_or(r.tower_type);
-            r.lat_deg = args.lat.unwrap_or(r.lat_deg);
-            r.lon_deg = args.lon.unwrap_or(r.lon_deg);
-            r.ground_elev_m = args.elev.unwrap_or(r.ground_elev_m);
-            r.height_m = args.height.unwrap_or(r.height_m);
-            args.optional.apply(&mut r);
-            validate(&r)?;
+            let id = args.id.clone();
+            // Read, change and write under one write lock: a concurrent edit
+            // of another field is kept, not overwritten.
+            let edited = db.edit(&id, &author, |r| {
+                r.tower_type = args.tower_type.unwrap_or(r.tower_type);
+                r.lat_deg = args.lat.unwrap_or(r.lat_deg);
+                r.lon_deg = args.lon.unwrap_or(r.lon_deg);
+                r.ground_elev_m = args.elev.unwrap_or(r.ground_elev_m);
+                r.height_m = args.height.unwrap_or(r.height_m);
+                args.optional.apply(r);
+                Ok::<(), std::convert::Infallible>(())
+            })?;
+            let Some(Ok((r, revision))) = edited else {
+                return Err(refused(format!("no tower {id:?}; use `add`")));
+            };
+            println!("edited {} at revision {revision}", r.id);
             warn_likely_mistakes(&db, &r)?;
-            println!("edited {} at revision {}", r.id, db.upsert(&r, &author)?);
         }
         Command::Remove { id } => match db.remove(&id, &author)? {
             Some(rev) => println!("removed {id} at revision {rev}"),
@@ -380,6 +405,26 @@ fn warn_likely_mistakes(db: &LandmarkDb, r: &LandmarkRecord) -> Result<(), Failu
         eprintln!("check {w}");
     }
     Ok(())
+}
+
+/// Examples of each kind of check printed in full; the rest counted.
+const CHECK_EXAMPLES: usize = 5;
+
+/// Checks summarized: a count per kind and its first few examples, so a
+/// file of towers at one spot does not print a line per pair.
+fn print_checks(warnings: &[towernav_landmark_db::Warning]) {
+    for (kind, of_kind) in towernav_landmark_db::import::checks_by_kind(warnings) {
+        for w in of_kind.iter().take(CHECK_EXAMPLES) {
+            eprintln!("check {w}");
+        }
+        if of_kind.len() > CHECK_EXAMPLES {
+            eprintln!(
+                "check ... and {} more: {kind} ({} in all)",
+                of_kind.len() - CHECK_EXAMPLES,
+                of_kind.len()
+            );
+        }
+    }
 }
 
 fn utc(unix_s: i64) -> String {

@@ -43,6 +43,15 @@ impl LandmarkIndex {
 
     /// Indices (into the records the index was built from) of towers whose foot lies
     /// within `radius_m` of `point`, nearest first, with their distances.
+    /// Towers from the nearest outwards, lazily: the nearest few cost a
+    /// logarithmic walk however many stand at one spot.
+    pub fn nearest(&self, point: &Geodetic) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let p = point.to_ecef();
+        self.tree
+            .nearest_neighbor_iter(p)
+            .map(move |e| (e.data, distance(e.geom(), &p)))
+    }
+
     pub fn within(&self, point: &Geodetic, radius_m: f64) -> Vec<(usize, f64)> {
         let p = point.to_ecef();
         let mut hits: Vec<(usize, f64)> = self

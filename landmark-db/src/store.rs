@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use rusqlite::{Connection, OptionalExtension, Transaction, params};
+use rusqlite::{Connection, OptionalExtension, Transaction, TransactionBehavior, params};
 use towernav_protocol::{LandmarkChange, LandmarkChangeOp, LandmarkRecord, TowerType};
 
 use crate::error::DbError;
@@ -76,6 +76,24 @@ pub struct LandmarkDb {
     path: String,
 }
 
+/// How long a writer waits for another's lock before it gives up.
+pub const BUSY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// What `edit` did: nothing (no such tower), the edit's own refusal, or the
+/// tower as stored with its revision.
+pub type Edited<E> = Option<Result<(LandmarkRecord, u64), E>>;
+
+/// What a write expects of the stored tower it replaces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Expect {
+    /// Whatever is there (imports replace).
+    Any,
+    /// No tower by this id yet (`add`).
+    Absent,
+    /// The tower as it was at this revision (an edit made from what was read).
+    Revision(u64),
+}
+
 const COLUMNS: &str = "id, tower_type, lat_deg, lon_deg, ground_elev_m, height_m, base_width_m, line_name, \
      survey_source, sigma_horizontal_m, sigma_vertical_m, notes, updated_at_unix_s, updated_by, revision";
 
@@ -98,18 +116,22 @@ impl LandmarkDb {
     }
 
     fn init(mut conn: Connection, path: String) -> Result<Self, DbError> {
-        let sql = |source| DbError::Sqlite {
-            path: path.clone(),
-            source,
-        };
-        conn.pragma_update(None, "journal_mode", "WAL")
-            .map_err(sql)?;
+        let sql = |source| DbError::from_sqlite(&path, source);
+        // A second writer (the CLI beside the ground station) waits rather
+        // than fails; set first, so that switching a new file to WAL waits too.
+        conn.busy_timeout(BUSY_TIMEOUT).map_err(sql)?;
+        // Switching a new file to WAL can be refused at once while another
+        // connection is creating it (SQLite calls no busy handler there).
+        retry_busy(|| conn.pragma_update(None, "journal_mode", "WAL")).map_err(sql)?;
         conn.pragma_update(None, "synchronous", "FULL")
             .map_err(sql)?;
-        // A second writer (CLI beside the ground station) waits rather than fails.
-        conn.busy_timeout(std::time::Duration::from_secs(5))
+        // Migrations run under the write lock and read the version inside it:
+        // writers starting together on a new file migrate it once, in turn.
+        retry_busy(|| conn.execute_batch("BEGIN IMMEDIATE; COMMIT")).map_err(sql)?;
+        let tx = conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
             .map_err(sql)?;
-        let version: i64 = conn
+        let version: i64 = tx
             .pragma_query_value(None, "user_version", |row| row.get(0))
             .map_err(sql)?;
         let known = MIGRATIONS.len() as i64;
@@ -121,20 +143,27 @@ impl LandmarkDb {
             });
         }
         for (i, migration) in MIGRATIONS.iter().enumerate().skip(version as usize) {
-            let tx = conn.transaction().map_err(sql)?;
             tx.execute_batch(migration).map_err(sql)?;
             tx.pragma_update(None, "user_version", (i + 1) as i64)
                 .map_err(sql)?;
-            tx.commit().map_err(sql)?;
         }
+        tx.commit().map_err(sql)?;
         Ok(Self { conn, path })
     }
 
     fn sql(&self) -> impl Fn(rusqlite::Error) -> DbError + '_ {
-        |source| DbError::Sqlite {
-            path: self.path.clone(),
-            source,
-        }
+        |source| DbError::from_sqlite(&self.path, source)
+    }
+
+    /// A write transaction that holds the write lock from its first statement
+    /// (`BEGIN IMMEDIATE`): what it reads cannot change before it writes, and
+    /// a second writer waits for the lock up to the busy timeout instead of
+    /// failing when a read would have to become a write.
+    fn write(&mut self) -> Result<Transaction<'_>, DbError> {
+        let path = self.path.clone();
+        self.conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(|source| DbError::from_sqlite(&path, source))
     }
 
     pub fn path(&self) -> &str {
@@ -183,72 +212,64 @@ impl LandmarkDb {
         records: &[LandmarkRecord],
         author: &Author,
     ) -> Result<u64, DbError> {
+        self.write_records(records, Expect::Any, author)
+    }
+
+    /// Writes `record` if the stored tower is as `expect` says, in one
+    /// transaction that holds the write lock from the check to the write:
+    /// a concurrent `add` of the same id or an edit from a stale read is
+    /// refused (`Exists`, `Conflict`), never silently replaced.
+    pub fn upsert_expecting(
+        &mut self,
+        record: &LandmarkRecord,
+        expect: Expect,
+        author: &Author,
+    ) -> Result<u64, DbError> {
+        self.write_records(std::slice::from_ref(record), expect, author)
+    }
+
+    /// Reads tower `id`, changes it with `edit` and writes it back, all under
+    /// the write lock: two concurrent edits of one tower both land.
+    /// `Ok(None)` if there is no such tower.
+    pub fn edit<E>(
+        &mut self,
+        id: &str,
+        author: &Author,
+        edit: impl FnOnce(&mut LandmarkRecord) -> Result<(), E>,
+    ) -> Result<Edited<E>, DbError> {
+        let path = self.path.clone();
+        let tx = self.write()?;
+        let Some(mut record) = get_in(&tx, &path, id)? else {
+            return Ok(None);
+        };
+        if let Err(e) = edit(&mut record) {
+            return Ok(Some(Err(e)));
+        }
+        validate(&record)?;
+        let revision = write_in(
+            &tx,
+            &path,
+            std::slice::from_ref(&record),
+            Expect::Any,
+            author,
+        )?;
+        tx.commit().map_err(|s| DbError::from_sqlite(&path, s))?;
+        Ok(Some(Ok((record, revision))))
+    }
+
+    fn write_records(
+        &mut self,
+        records: &[LandmarkRecord],
+        expect: Expect,
+        author: &Author,
+    ) -> Result<u64, DbError> {
         for r in records {
             validate(r)?;
         }
         let path = self.path.clone();
-        let sql = |source| DbError::Sqlite {
-            path: path.clone(),
-            source,
-        };
-        let tx = self.conn.transaction().map_err(sql)?;
-        let mut revision = current_revision(&tx).map_err(sql)?;
-        {
-            let mut upsert = tx
-                .prepare_cached(&format!(
-                    "INSERT OR REPLACE INTO landmarks ({COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)"
-                ))
-                .map_err(sql)?;
-            let mut log = tx
-                .prepare_cached(
-                    "INSERT INTO changes (revision, id, op, record, updated_at_unix_s, updated_by) VALUES (?1, ?2, 'upsert', ?3, ?4, ?5)",
-                )
-                .map_err(sql)?;
-            for r in records {
-                revision += 1;
-                let stored = LandmarkRecord {
-                    updated_at_unix_s: author.at_unix_s,
-                    updated_by: author.by.clone(),
-                    revision,
-                    ..r.clone()
-                };
-                upsert
-                    .execute(params![
-                        stored.id,
-                        stored.tower_type.as_str(),
-                        stored.lat_deg,
-                        stored.lon_deg,
-                        stored.ground_elev_m,
-                        stored.height_m,
-                        stored.base_width_m,
-                        stored.line_name,
-                        stored.survey_source,
-                        stored.sigma_horizontal_m,
-                        stored.sigma_vertical_m,
-                        stored.notes,
-                        stored.updated_at_unix_s,
-                        stored.updated_by,
-                        revision as i64
-                    ])
-                    .map_err(sql)?;
-                let json = serde_json::to_string(&stored).map_err(|e| DbError::Corrupt {
-                    path: path.clone(),
-                    id: stored.id.clone(),
-                    field: "record",
-                    reason: e.to_string(),
-                })?;
-                log.execute(params![
-                    revision as i64,
-                    stored.id,
-                    json,
-                    author.at_unix_s,
-                    author.by
-                ])
-                .map_err(sql)?;
-            }
-        }
-        set_revision(&tx, revision).map_err(sql)?;
-        tx.commit().map_err(sql)?;
+        let tx = self.write()?;
+        let revision = write_in(&tx, &path, records, expect, author)?;
+        tx.commit().map_err(|s| DbError::from_sqlite(&path, s))?;
         Ok(revision)
     }
 
@@ -259,11 +280,8 @@ impl LandmarkDb {
     /// Removes a tower; `Ok(None)` if there was none by that id.
     pub fn remove(&mut self, id: &str, author: &Author) -> Result<Option<u64>, DbError> {
         let path = self.path.clone();
-        let sql = |source| DbError::Sqlite {
-            path: path.clone(),
-            source,
-        };
-        let tx = self.conn.transaction().map_err(sql)?;
+        let sql = |source| DbError::from_sqlite(&path, source);
+        let tx = self.write()?;
         if tx
             .execute("DELETE FROM landmarks WHERE id = ?1", [id])
             .map_err(sql)?
@@ -356,17 +374,21 @@ impl LandmarkDb {
     }
 
     fn decode(&self, raw: RawRow) -> Result<LandmarkRecord, DbError> {
-        let tower_type: TowerType = raw.tower_type.parse().map_err(|reason| DbError::Corrupt {
-            path: self.path.clone(),
-            id: raw.record.id.clone(),
-            field: "tower_type",
-            reason,
-        })?;
-        Ok(LandmarkRecord {
-            tower_type,
-            ..raw.record
-        })
+        decode(&self.path, raw)
     }
+}
+
+fn decode(path: &str, raw: RawRow) -> Result<LandmarkRecord, DbError> {
+    let tower_type: TowerType = raw.tower_type.parse().map_err(|reason| DbError::Corrupt {
+        path: path.into(),
+        id: raw.record.id.clone(),
+        field: "tower_type",
+        reason,
+    })?;
+    Ok(LandmarkRecord {
+        tower_type,
+        ..raw.record
+    })
 }
 
 /// A row before its tower type is checked (SQLite cannot hold our enum).
@@ -398,6 +420,131 @@ fn raw_row(row: &rusqlite::Row<'_>) -> rusqlite::Result<RawRow> {
             )
         },
     })
+}
+
+/// The records written inside `tx`, each with its revision and change-log
+/// entry, after `expect` was checked against what is stored. Returns the last revision.
+fn write_in(
+    tx: &Transaction<'_>,
+    path: &str,
+    records: &[LandmarkRecord],
+    expect: Expect,
+    author: &Author,
+) -> Result<u64, DbError> {
+    let sql = |source| DbError::from_sqlite(path, source);
+    for r in records {
+        let stored: Option<i64> = tx
+            .query_row(
+                "SELECT revision FROM landmarks WHERE id = ?1",
+                [&r.id],
+                |row| row.get(0),
+            )
+            .optional()
+            .map_err(sql)?;
+        match (expect, stored) {
+            (Expect::Absent, Some(_)) => {
+                return Err(DbError::Exists {
+                    path: path.into(),
+                    id: r.id.clone(),
+                });
+            }
+            (Expect::Revision(want), found) if found != Some(want as i64) => {
+                return Err(DbError::Conflict {
+                    path: path.into(),
+                    id: r.id.clone(),
+                    expected: want,
+                    found: found.map(|f| f as u64),
+                });
+            }
+            _ => {}
+        }
+    }
+    let mut revision = current_revision(tx).map_err(sql)?;
+    {
+        let mut upsert = tx
+                .prepare_cached(&format!(
+                    "INSERT OR REPLACE INTO landmarks ({COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)"
+                ))
+                .map_err(sql)?;
+        let mut log = tx
+                .prepare_cached(
+                    "INSERT INTO changes (revision, id, op, record, updated_at_unix_s, updated_by) VALUES (?1, ?2, 'upsert', ?3, ?4, ?5)",
+                )
+                .map_err(sql)?;
+        for r in records {
+            revision += 1;
+            let stored = LandmarkRecord {
+                updated_at_unix_s: author.at_unix_s,
+                updated_by: author.by.clone(),
+                revision,
+                ..r.clone()
+            };
+            upsert
+                .execute(params![
+                    stored.id,
+                    stored.tower_type.as_str(),
+                    stored.lat_deg,
+                    stored.lon_deg,
+                    stored.ground_elev_m,
+                    stored.height_m,
+                    stored.base_width_m,
+                    stored.line_name,
+                    stored.survey_source,
+                    stored.sigma_horizontal_m,
+                    stored.sigma_vertical_m,
+                    stored.notes,
+                    stored.updated_at_unix_s,
+                    stored.updated_by,
+                    revision as i64
+                ])
+                .map_err(sql)?;
+            let json = serde_json::to_string(&stored).map_err(|e| DbError::Corrupt {
+                path: path.into(),
+                id: stored.id.clone(),
+                field: "record",
+                reason: e.to_string(),
+            })?;
+            log.execute(params![
+                revision as i64,
+                stored.id,
+                json,
+                author.at_unix_s,
+                author.by
+            ])
+            .map_err(sql)?;
+        }
+    }
+    set_revision(tx, revision).map_err(sql)?;
+    Ok(revision)
+}
+
+/// `op` again while SQLite answers busy without waiting, up to the busy timeout.
+fn retry_busy<T>(mut op: impl FnMut() -> rusqlite::Result<T>) -> rusqlite::Result<T> {
+    let started = std::time::Instant::now();
+    loop {
+        match op() {
+            Err(e)
+                if e.sqlite_error_code() == Some(rusqlite::ErrorCode::DatabaseBusy)
+                    && started.elapsed() < BUSY_TIMEOUT =>
+            {
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+            other => return other,
+        }
+    }
+}
+
+/// One tower read inside a transaction.
+fn get_in(tx: &Transaction<'_>, path: &str, id: &str) -> Result<Option<LandmarkRecord>, DbError> {
+    let raw = tx
+        .query_row(
+            &format!("SELECT {COLUMNS} FROM landmarks WHERE id = ?1"),
+            [id],
+            raw_row,
+        )
+        .optional()
+        .map_err(|s| DbError::from_sqlite(path, s))?;
+    raw.map(|raw| decode(path, raw)).transpose()
 }
 
 fn current_revision(tx: &Transaction<'_>) -> rusqlite::Result<u64> {

@@ -63,6 +63,29 @@ pub fn validate(r: &LandmarkRecord) -> Result<(), ValidationError> {
             return err(field, format!("{v} is outside 0..={max} m"));
         }
     }
+    let text = [
+        ("line_name", r.line_name.as_deref().unwrap_or_default()),
+        (
+            "survey_source",
+            r.survey_source.as_deref().unwrap_or_default(),
+        ),
+        ("notes", r.notes.as_str()),
+        ("updated_by", r.updated_by.as_str()),
+    ];
+    for (field, value) in text {
+        if let Some(c) = value
+            .chars()
+            .find(|c| c.is_control() && !matches!(c, '\t' | '\n' | '\r'))
+        {
+            return err(
+                field,
+                format!(
+                    "holds the control character U+{:04X}; remove it",
+                    u32::from(c)
+                ),
+            );
+        }
+    }
     if r.base_width_m == Some(0.0) {
         return err("base_width_m", "is zero; leave it empty if unknown".into());
     }
@@ -90,7 +113,8 @@ mod tests {
     #[test]
     fn each_bad_field_is_named() {
         type Spoil = fn(&mut LandmarkRecord);
-        let cases: [(&str, Spoil); 8] = [
+        let cases: [(&str, Spoil); 9] = [
+            ("notes", |r| r.notes = "bell\u{7}".into()),
             ("id", |r| r.id = "a b".into()),
             ("lat_deg", |r| r.lat_deg = 95.0),
             ("lon_deg", |r| r.lon_deg = f64::NAN),

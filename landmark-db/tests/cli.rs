@@ -157,3 +157,121 @@ fn a_surveyor_session() {
     assert_eq!(a.len(), 3, "{a:?}");
     assert_eq!(a, b);
 }
+
+#[test]
+fn numeric_flags_refuse_nan_infinity_and_negatives_by_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("s.csv"), SURVEY).expect("write");
+    let file = d.join("s.csv");
+    let file = file.to_str().expect("utf8");
+    for (args, flag) in [
+        (
+            vec!["import", "--min-spacing-m", "NaN", file],
+            "--min-spacing-m",
+        ),
+        (
+            vec!["import", "--min-spacing-m=-5", file],
+            "--min-spacing-m",
+        ),
+        (
+            vec!["import", "--min-spacing-m", "inf", file],
+            "--min-spacing-m",
+        ),
+        (
+            vec![
+                "add", "Z1", "--type", "A", "--lat", "NaN", "--lon", "114", "--elev", "20",
+                "--height", "30",
+            ],
+            "--lat",
+        ),
+        (vec!["edit", "A1", "--height", "inf"], "--height"),
+        (vec!["edit", "A1", "--base-width=-1"], "--base-width"),
+    ] {
+        let out = db(d, &args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", text(&out));
+        assert!(text(&out).contains(flag), "{args:?}: {}", text(&out));
+    }
+}
+
+#[test]
+fn towers_at_one_spot_are_summarized_not_listed_pair_by_pair() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let mut csv = String::from("id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m\n");
+    for i in 0..1500 {
+        csv += &format!("T{i},B,30.5,114.3,20,38\n");
+    }
+    std::fs::write(d.join("heap.csv"), csv).expect("write");
+    let out = db(d, &["import", d.join("heap.csv").to_str().expect("utf8")]);
+    assert!(out.status.success(), "{}", text(&out));
+    let lines = text(&out).lines().count();
+    assert!(lines < 20, "{lines} lines:\n{}", text(&out));
+    assert!(
+        text(&out).contains("1495 more") && text(&out).contains("imported 1500 towers"),
+        "{}",
+        text(&out)
+    );
+}
+
+#[test]
+fn a_writer_locked_out_past_the_wait_exits_3_from_every_command() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("s.csv"), SURVEY).expect("write");
+    assert!(
+        db(d, &["import", d.join("s.csv").to_str().expect("utf8")])
+            .status
+            .success()
+    );
+    let holder = rusqlite::Connection::open(d.join("towers.sqlite")).expect("raw connection");
+    holder.execute_batch("BEGIN IMMEDIATE").expect("lock");
+    let csv = d.join("s.csv");
+    for args in [
+        vec![
+            "add", "Z1", "--type", "A", "--lat", "30.6", "--lon", "114.3", "--elev", "20",
+            "--height", "30",
+        ],
+        vec!["edit", "A1", "--notes", "x"],
+        vec!["remove", "B1"],
+        vec!["import", csv.to_str().expect("utf8")],
+    ] {
+        let out = db(d, &args);
+        assert_eq!(out.status.code(), Some(3), "{args:?}: {}", text(&out));
+        assert!(
+            text(&out).contains("locked by another writer"),
+            "{args:?}: {}",
+            text(&out)
+        );
+    }
+    holder.execute_batch("ROLLBACK").expect("unlock");
+}
+
+#[test]
+fn every_export_imports_back_into_a_new_database() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let csv = "id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m,base_width_m,notes\n\
+               A1,A,30.5,114.3,20,0.0004,0.0002,\"two\nlines\"\n";
+    std::fs::write(d.join("tiny.csv"), csv).expect("write");
+    assert!(
+        db(d, &["import", d.join("tiny.csv").to_str().expect("utf8")])
+            .status
+            .success()
+    );
+    for (format, name) in [("csv", "e.csv"), ("geojson", "e.geojson"), ("osm", "e.osm")] {
+        let path = d.join(name);
+        let path = path.to_str().expect("utf8");
+        let out = db(d, &["export", "--format", format, path]);
+        assert!(out.status.success(), "{}", text(&out));
+        let fresh = d.join(format!("fresh-{format}"));
+        std::fs::create_dir_all(&fresh).expect("mkdir");
+        let out = db(&fresh, &["import", "--format", format, path]);
+        assert!(out.status.success(), "{format}: {}", text(&out));
+        let show = text(&db(&fresh, &["show", "A1"]));
+        assert!(show.contains("0.0004"), "{format}: {show}");
+        if format != "osm" {
+            assert!(show.contains("two\\nlines"), "{format}: {show}");
+        }
+    }
+}
