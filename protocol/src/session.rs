@@ -48,10 +48,14 @@ fn config_for(mode: &str, endpoints: &Endpoints) -> Result<zenoh::Config, Sessio
     }
     let mut config = zenoh::Config::default();
     let json = |v: &[String]| serde_json::to_string(v).unwrap_or_else(|_| "[]".into());
-    let settings: [(&'static str, String); 5] = [
+    let settings: [(&'static str, String); 6] = [
         ("mode", format!("{mode:?}")),
         ("timestamping/enabled", "true".into()),
         ("scouting/multicast/enabled", "false".into()),
+        // Opening does not wait for the configured peers: a caller that needs
+        // one waits for it and says so itself, rather than zenoh warning
+        // ("scouting delay elapsed") whenever a loaded machine connects slowly.
+        ("open/return_conditions/connect_scouted", "false".into()),
         ("listen/endpoints", json(&endpoints.listen)),
         ("connect/endpoints", json(&endpoints.connect)),
     ];
@@ -81,6 +85,11 @@ mod tests {
         assert!(text.contains("127.0.0.1:17447"), "{text}");
         let multicast = config.get_json("scouting/multicast/enabled").expect("key");
         assert_eq!(multicast, "false");
+        // No wait for peers at open, so no scouting-delay warning on a slow connect.
+        let wait = config
+            .get_json("open/return_conditions/connect_scouted")
+            .expect("key");
+        assert_eq!(wait, "false");
         let router = router_config(&Endpoints::default()).expect("config");
         assert_eq!(router.get_json("mode").expect("key"), "\"router\"");
         assert_eq!(

@@ -21,6 +21,11 @@ pub const PLATE_MARGIN_M: f64 = 100.0;
 pub enum LandmarkWorldError {
     #[error("no towers to build a world from")]
     Empty,
+    #[error("building a world from {path}: {source}")]
+    Load {
+        path: std::path::PathBuf,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     #[error("tower {id}: {source}")]
     Position { id: String, source: GeodesyError },
     #[error("tower {id}: height {height_m} m is not a tower's (1-200 m)")]
@@ -28,6 +33,29 @@ pub enum LandmarkWorldError {
 }
 
 impl World {
+    /// The world a user chose: the towers `load` reads from `file`, one drawn
+    /// from `random_seed`, or the seed's field. `load` is the caller's I/O.
+    pub fn chosen<E: std::error::Error + Send + Sync + 'static>(
+        file: Option<&std::path::Path>,
+        random_seed: Option<u64>,
+        load: impl FnOnce(&std::path::Path) -> Result<Vec<LandmarkRecord>, E>,
+    ) -> Result<Self, LandmarkWorldError> {
+        match (file, random_seed) {
+            (Some(path), _) => {
+                let towers = load(path).map_err(|e| LandmarkWorldError::Load {
+                    path: path.to_path_buf(),
+                    source: Box::new(e),
+                })?;
+                Self::from_landmarks(&towers).map_err(|e| LandmarkWorldError::Load {
+                    path: path.to_path_buf(),
+                    source: Box::new(e),
+                })
+            }
+            (None, Some(seed)) => Ok(Self::random(seed, &crate::world::WorldParams::default())),
+            (None, None) => Ok(Self::seed_field()),
+        }
+    }
+
     /// The towers of `records` on a flat plate, with no distractors.
     pub fn from_landmarks(records: &[LandmarkRecord]) -> Result<Self, LandmarkWorldError> {
         let first = records.first().ok_or(LandmarkWorldError::Empty)?;

@@ -8,7 +8,6 @@ use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
 use towernav_sim::replay::{ReplaySource, ReplayWorld};
 use towernav_sim::waypoints::FlightPlan;
-use towernav_sim::world::WorldParams;
 use towernav_sim::{Conditions, Renderer, Scenario, World};
 
 #[derive(Parser)]
@@ -44,15 +43,11 @@ struct WorldArg {
 
 impl WorldArg {
     fn world(&self) -> anyhow::Result<World> {
-        Ok(match (&self.world, self.random_world) {
-            (Some(path), _) => {
-                let towers = towernav_landmark_db::load_towers(path)?;
-                World::from_landmarks(&towers)
-                    .with_context(|| format!("building a world from {}", path.display()))?
-            }
-            (None, Some(seed)) => World::random(seed, &WorldParams::default()),
-            (None, None) => World::seed_field(),
-        })
+        Ok(World::chosen(
+            self.world.as_deref(),
+            self.random_world,
+            towernav_landmark_db::load_towers,
+        )?)
     }
 }
 

@@ -13,7 +13,6 @@ use towernav_geometry::{Datum, Geodetic, Intrinsics, PinholeCamera};
 use towernav_protocol::NodeId;
 use towernav_protocol::session::Endpoints;
 use towernav_sim::waypoints::{FlightPlan, PlanSource, along_longest_line};
-use towernav_sim::world::WorldParams;
 use towernav_sim::{Scenario, World};
 
 use super::collector::{PoseCollector, wait_for_peer};
@@ -334,15 +333,11 @@ pub async fn run_edge(
 /// plan file, or by default the skeleton's level flight over the seed's field
 /// and a pass along the longest line over any other world).
 pub fn sim_scenario(source: &SourceSection) -> anyhow::Result<Scenario> {
-    let world = match (&source.world, source.random_world) {
-        (Some(path), _) => {
-            let towers = towernav_landmark_db::load_towers(path)?;
-            World::from_landmarks(&towers)
-                .with_context(|| format!("building a world from {}", path.display()))?
-        }
-        (None, Some(seed)) => World::random(seed, &WorldParams::default()),
-        (None, None) => World::seed_field(),
-    };
+    let world = World::chosen(
+        source.world.as_deref(),
+        source.random_world,
+        towernav_landmark_db::load_towers,
+    )?;
     let seed = source.seed;
     let plan = match &source.flight {
         Some(flight) => match PlanSource::parse(flight) {
