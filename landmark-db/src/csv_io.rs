@@ -4,54 +4,13 @@
 //! Export adds `updated_at_unix_s,updated_by,revision`, which import ignores:
 //! the database stamps its own.
 
-use std::fmt;
 use std::io::{Read, Write};
-use std::path::Path;
 
 use towernav_protocol::LandmarkRecord;
 
-use crate::error::ImportError;
-use crate::fields::{Collector, build_record};
-use crate::import::{Format, ImportOptions, Parsed, import_file};
-use crate::store::{Author, LandmarkDb};
-
-pub const REQUIRED: [&str; 6] = [
-    "id",
-    "tower_type",
-    "lat_deg",
-    "lon_deg",
-    "ground_elev_m",
-    "height_m",
-];
-pub const OPTIONAL: [&str; 6] = [
-    "base_width_m",
-    "line_name",
-    "survey_source",
-    "sigma_horizontal_m",
-    "sigma_vertical_m",
-    "notes",
-];
-pub const BOOKKEEPING: [&str; 3] = ["updated_at_unix_s", "updated_by", "revision"];
-
-/// One rejected row: where it is, which record, which field, and why.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RowProblem {
-    /// Where in the file: "line 4" (CSV, header is line 1), "feature 3" (GeoJSON), "node 123" (OSM).
-    pub at: String,
-    pub id: String,
-    pub field: String,
-    pub reason: String,
-}
-
-impl fmt::Display for RowProblem {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{} (id {:?}): {}: {}",
-            self.at, self.id, self.field, self.reason
-        )
-    }
-}
+use crate::error::{ImportError, RowProblem};
+use crate::fields::{BOOKKEEPING, Collector, OPTIONAL, REQUIRED, build_record};
+use crate::import::Parsed;
 
 /// Parses and validates every row; records and problems both come back.
 /// Fails whole only when the file cannot be read as CSV at all.
@@ -106,12 +65,6 @@ pub fn parse_csv(input: impl Read, file: &str) -> Result<Parsed, ImportError> {
 /// All rows or an error listing every bad one.
 pub fn read_csv(input: impl Read, file: &str) -> Result<Vec<LandmarkRecord>, ImportError> {
     parse_csv(input, file)?.all_or_nothing(file)
-}
-
-/// Imports a CSV file all-or-nothing: one bad row refuses the whole file and leaves the database as it was.
-pub fn import_csv(db: &mut LandmarkDb, path: &Path, author: &Author) -> Result<usize, ImportError> {
-    let report = import_file(db, path, Format::Csv, &ImportOptions::default(), author)?;
-    Ok(report.imported)
 }
 
 pub fn export_csv(records: &[LandmarkRecord], output: impl Write) -> Result<(), csv::Error> {

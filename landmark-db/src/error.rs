@@ -1,5 +1,26 @@
-use crate::csv_io::RowProblem;
+use std::fmt;
+
 use crate::validate::ValidationError;
+
+/// One rejected row: where it is, which record, which field, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RowProblem {
+    /// Where in the file: "line 4" (CSV, header is line 1), "feature 3" (GeoJSON), "node 123" (OSM).
+    pub at: String,
+    pub id: String,
+    pub field: String,
+    pub reason: String,
+}
+
+impl fmt::Display for RowProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} (id {:?}): {}: {}",
+            self.at, self.id, self.field, self.reason
+        )
+    }
+}
 
 #[derive(Debug, thiserror::Error)]
 pub enum DbError {

@@ -5,9 +5,29 @@ use std::collections::HashMap;
 
 use towernav_protocol::LandmarkRecord;
 
-use crate::csv_io::{OPTIONAL, REQUIRED, RowProblem};
+use crate::error::RowProblem;
 use crate::import::Parsed;
 use crate::validate::validate;
+
+/// The record's columns, as every format names them: required, optional,
+/// and stamped by the database (ignored on import).
+pub const REQUIRED: [&str; 6] = [
+    "id",
+    "tower_type",
+    "lat_deg",
+    "lon_deg",
+    "ground_elev_m",
+    "height_m",
+];
+pub const OPTIONAL: [&str; 6] = [
+    "base_width_m",
+    "line_name",
+    "survey_source",
+    "sigma_horizontal_m",
+    "sigma_vertical_m",
+    "notes",
+];
+pub const BOOKKEEPING: [&str; 3] = ["updated_at_unix_s", "updated_by", "revision"];
 
 /// Builds a record from `get(field name)`, which answers trimmed, non-empty text or `None`.
 pub(crate) fn build_record(

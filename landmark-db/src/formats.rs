@@ -12,8 +12,7 @@ use std::collections::BTreeMap;
 use geojson::{Feature, FeatureCollection, Geometry, GeometryValue, JsonObject, JsonValue};
 use towernav_protocol::{LandmarkRecord, TowerType};
 
-use crate::csv_io::RowProblem;
-use crate::error::ImportError;
+use crate::error::{ImportError, RowProblem};
 use crate::fields::{Collector, build_record};
 use crate::import::Parsed;
 

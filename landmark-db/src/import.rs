@@ -6,8 +6,8 @@ use std::path::Path;
 use towernav_geometry::Geodetic;
 use towernav_protocol::LandmarkRecord;
 
-use crate::csv_io::{RowProblem, parse_csv};
-use crate::error::ImportError;
+use crate::csv_io::parse_csv;
+use crate::error::{ImportError, RowProblem};
 use crate::formats::{OsmMapping, parse_geojson, parse_osm_xml, parse_overpass_json};
 use crate::spatial::LandmarkIndex;
 use crate::store::{Author, LandmarkDb};
@@ -144,6 +144,12 @@ pub fn import_file(
     let file = path.display().to_string();
     let parsed = parse_file(path, format, &options.osm)?;
     import_parsed(db, parsed, &file, options, author)
+}
+
+/// Imports a CSV file all-or-nothing: one bad row refuses the whole file and leaves the database as it was.
+pub fn import_csv(db: &mut LandmarkDb, path: &Path, author: &Author) -> Result<usize, ImportError> {
+    let report = import_file(db, path, Format::Csv, &ImportOptions::default(), author)?;
+    Ok(report.imported)
 }
 
 pub fn import_parsed(

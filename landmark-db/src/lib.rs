@@ -16,12 +16,12 @@ pub mod validate;
 /// Geodesy has one home, `towernav-geometry`; re-exported for database users.
 pub use towernav_geometry::geodesy;
 
-pub use csv_io::{RowProblem, export_csv, import_csv, parse_csv, read_csv};
-pub use error::{DbError, ImportError};
+pub use csv_io::{export_csv, parse_csv, read_csv};
+pub use error::{DbError, ImportError, RowProblem};
 pub use formats::{OSM_TYPE_TAG, OsmMapping, export_geojson, export_osm_xml};
 pub use import::{
-    CheckKind, Format, ImportOptions, ImportReport, Parsed, Warning, checks_by_kind, import_file,
-    import_parsed, likely_mistakes,
+    CheckKind, Format, ImportOptions, ImportReport, Parsed, Warning, checks_by_kind, import_csv,
+    import_file, import_parsed, likely_mistakes,
 };
 pub use load::load_towers;
 pub use spatial::LandmarkIndex;
