@@ -10,7 +10,7 @@ use towernav_protocol::TowerType;
 use towernav_sim::Scenario;
 
 use crate::landmarks::LandmarkMap;
-use crate::localizer::{Observation, single_tower_position};
+use crate::localizer::{Observation, paper_range, single_tower_position};
 use crate::mot_metrics::MotAccumulator;
 use crate::pipeline::{BoundBox, FrameOutput, Pipeline, PipelineConfig};
 use crate::sim_eval::{ErrorStats, error_stats};
@@ -192,8 +192,7 @@ pub fn run(
             }
             let rel = (tower.foot_in_world - p).xy();
             let (true_e, true_d) = (rel.dot(&right), rel.dot(&forward));
-            let seed_d = k.fy * tower.height_m / h;
-            let seed_e = (t.bbox.center_x() - k.cx) * seed_d / k.fx;
+            let (seed_d, seed_e) = paper_range(k, tower.height_m, &t.bbox);
             let obs = Observation {
                 tower,
                 bbox: t.bbox,

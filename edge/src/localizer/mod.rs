@@ -18,7 +18,7 @@ use towernav_geometry::{Intrinsics, PixelBox};
 use crate::landmarks::MapTower;
 
 pub use robust::{RobustFix, robust_lbl};
-pub use seed::seed_lbl;
+pub use seed::{paper_range, seed_lbl};
 pub use single::single_tower_position;
 
 /// Which per-frame estimator the pipeline runs.

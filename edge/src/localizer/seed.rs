@@ -5,9 +5,16 @@
 //! Several towers: the plain mean. The camera is taken as level.
 
 use nalgebra::{Matrix2, Matrix4, Point3, Vector2};
-use towernav_geometry::Intrinsics;
+use towernav_geometry::{Intrinsics, PixelBox};
 
 use super::{Fix, LocalizerParams, Observation, touches_edge};
+
+/// The paper's range formula for one box of a tower `tower_height_m` tall:
+/// `(D, E)`, metres along the optical axis and to its right, camera level.
+pub fn paper_range(k: &Intrinsics, tower_height_m: f64, bbox: &PixelBox) -> (f64, f64) {
+    let d = k.fy * tower_height_m / bbox.height();
+    (d, (bbox.center_x() - k.cx) * d / k.fx)
+}
 
 pub fn seed_lbl(
     observations: &[Observation<'_>],
@@ -29,8 +36,7 @@ pub fn seed_lbl(
             continue;
         }
         let big_h = o.tower.height_m;
-        let d = k.fy * big_h / h;
-        let e = (b.center_x() - k.cx) * d / k.fx;
+        let (d, e) = paper_range(k, big_h, b);
         let above_foot = (b.bottom - k.cy) * d / k.fy;
         let horizontal = o.tower.foot_in_world.xy().coords - (right * e + forward * d);
         sum += nalgebra::Vector3::new(
