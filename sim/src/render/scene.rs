@@ -134,7 +134,7 @@ impl Scene<'_> {
     fn stroke(
         &self,
         pixmap: &mut Pixmap,
-        segments: &[(Point2<f64>, Point2<f64>)],
+        segments: impl IntoIterator<Item = (Point2<f64>, Point2<f64>)>,
         rgb: [f32; 3],
         width_m: f64,
         depth_m: f64,
@@ -156,7 +156,7 @@ impl Scene<'_> {
         };
         let mut pb = PathBuilder::new();
         for (a, b) in segments {
-            if let Some((a, b)) = view.clip(a, b)
+            if let Some((a, b)) = view.clip(&a, &b)
                 && (b - a).norm() >= MIN_SEGMENT_PX
             {
                 pb.move_to(a.x as f32, a.y as f32);
@@ -176,16 +176,12 @@ impl Scene<'_> {
     fn draw_tower(&self, pixmap: &mut Pixmap, tower: &TowerGeometry) {
         let depth = self.depth(&tower.axis_mid_in_world);
         let distance = depth.max(1.0);
-        let mut segments = Vec::with_capacity(tower.members.len());
         for kind in MemberKind::ALL {
-            segments.clear();
-            segments.extend(
-                tower
-                    .members
-                    .iter()
-                    .filter(|(k, _, _)| *k == kind)
-                    .filter_map(|(_, a, b)| self.segment(a, b)),
-            );
+            let segments = tower
+                .members
+                .iter()
+                .filter(|(k, _, _)| *k == kind)
+                .filter_map(|(_, a, b)| self.segment(a, b));
             let rgb = match kind {
                 MemberKind::Leg => [0.52, 0.54, 0.56],
                 MemberKind::Brace => [0.62, 0.64, 0.66],
@@ -194,7 +190,7 @@ impl Scene<'_> {
             };
             self.stroke(
                 pixmap,
-                &segments,
+                segments,
                 rgb,
                 kind.width_m(),
                 depth.max(2.0),
@@ -214,7 +210,7 @@ impl Scene<'_> {
                 .depth(&nalgebra::center(&pair[0], &pair[1]))
                 .max(NEAR_M);
             // Conductors are ~3 cm across: faint hairlines except close up.
-            self.stroke(pixmap, &[piece], [0.25, 0.25, 0.28], 0.03, depth, depth);
+            self.stroke(pixmap, [piece], [0.25, 0.25, 0.28], 0.03, depth, depth);
         }
     }
 
@@ -230,8 +226,8 @@ impl Scene<'_> {
                 crown_radius_m,
             } => {
                 let crown = foot_in_world + Vector3::new(0.0, 0.0, height_m - crown_radius_m);
-                let trunk: Vec<_> = self.segment(&foot_in_world, &crown).into_iter().collect();
-                self.stroke(pixmap, &trunk, [0.30, 0.22, 0.15], 0.4, depth, depth);
+                let trunk = self.segment(&foot_in_world, &crown);
+                self.stroke(pixmap, trunk, [0.30, 0.22, 0.15], 0.4, depth, depth);
                 let centre = self.camera_from_world * crown;
                 if let Some(c) = self.pixel(&centre) {
                     let r = (crown_radius_m * self.camera.intrinsics.fx / centre.z) as f32;
@@ -271,14 +267,13 @@ impl Scene<'_> {
                 // A cross-bar 0.6 m below the top, 1.6 m wide.
                 let bar_centre = top - Vector3::new(0.0, 0.0, 0.6);
                 let half_bar = Vector3::new(0.0, 0.8, 0.0);
-                let pole: Vec<_> = [
+                let pole = [
                     (foot_in_world, top),
                     (bar_centre - half_bar, bar_centre + half_bar),
                 ]
-                .iter()
-                .filter_map(|(a, b)| self.segment(a, b))
-                .collect();
-                self.stroke(pixmap, &pole, [0.42, 0.36, 0.30], 0.3, depth, depth);
+                .into_iter()
+                .filter_map(|(a, b)| self.segment(&a, &b));
+                self.stroke(pixmap, pole, [0.42, 0.36, 0.30], 0.3, depth, depth);
             }
         }
     }
