@@ -1,26 +1,22 @@
-//! The onboard pipeline.
+//! The onboard daemon: the thin tokio, Zenoh and ONNX Runtime shell around
+//! `towernav-core`. Frame sources, the detector worker, the Zenoh node, the
+//! landmark sync, MAVLink out, and the loop that drives the core's
+//! `DaemonCore` with frames, commands and its timer.
 //!
-//! The core (`tracker`, `identity`, `localizer`, `filter`, `landmarks`, `pipeline`,
-//! `sim_eval`, `wire`) is pure and deterministic: time comes in with each frame,
-//! and it imports no tokio, zenoh or ort. `shell` drives it over Zenoh.
+//! Behind the `demo` feature: the simulated source, the demo's pose collector
+//! and report, and the eval commands.
 
-pub mod assignment;
-pub mod autopilot;
-pub mod detector;
-pub mod filter;
-pub mod identity;
-pub mod landmarks;
-pub mod loc_eval;
-pub mod localizer;
-pub mod mot_metrics;
-pub mod pipeline;
-pub mod replica;
-pub mod report;
-pub mod shell;
-pub mod sim_eval;
-pub mod tracker;
-pub mod tracking_eval;
-pub mod wire;
+pub mod daemon;
+pub mod edge_cmd;
+pub mod error;
+pub mod landmark_sync;
+#[cfg(not(feature = "demo"))]
+pub mod no_sim;
+pub mod node;
 
-pub use landmarks::{LandmarkMap, MapTower};
-pub use pipeline::{BoundTrack, FrameOutput, Pipeline, PipelineConfig};
+#[cfg(feature = "demo")]
+pub mod collector;
+#[cfg(feature = "demo")]
+pub mod demo;
+
+pub use error::ShellError;

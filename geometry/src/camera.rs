@@ -83,7 +83,7 @@ pub struct PinholeCamera {
 }
 
 impl PinholeCamera {
-    /// The seed's camera: 1280x720 with a 70 degree horizontal field of view, level mount.
+    /// The paper's camera: 1280x720 with a 70 degree horizontal field of view, level mount.
     pub fn default_hd() -> Self {
         Self {
             intrinsics: Intrinsics::from_hfov(1280, 720, 70.0),

@@ -1,16 +1,22 @@
 //! The one home for towernav's geometry: frames and attitude, the pinhole
-//! camera, pixel boxes and WGS84 geodesy.
+//! camera, pixel boxes, WGS84 geodesy, the index of points within a radius and
+//! Web Mercator map tiles.
 //!
 //! Conventions (see ARCHITECTURE.md): the world is east-north-up (ENU) about a
 //! geodetic datum, the body is forward-left-up (FLU), the camera is the optical
 //! frame (x right, y down, z forward). Transforms are named `a_from_b`.
 
 pub mod camera;
+pub mod frame_camera;
 pub mod frames;
 pub mod geodesy;
 pub mod pixel_box;
+pub mod spatial;
+pub mod web_mercator;
 
 pub use camera::{CameraMount, Intrinsics, PinholeCamera, RayGrid};
+pub use frame_camera::{FrameCamera, Projected};
 pub use frames::{Attitude, Pose, wrap_angle};
 pub use geodesy::{Datum, Geodetic};
 pub use pixel_box::PixelBox;
+pub use spatial::GeoIndex;

@@ -562,7 +562,7 @@ mod tests {
         };
         let bytes = towernav_protocol::encode(&preview).expect("encode");
         let key = towernav_protocol::Keys::new(NodeId::new("demo").expect("valid"))
-            .uav(&uav, towernav_protocol::Topic::Preview);
+            .uav_key::<towernav_protocol::Preview>(&uav);
         tx.send(crate::events::decode_sample(&key, &bytes).expect("preview"))
             .expect("send");
         let mut harness = harness(app, Rc::new(Cell::new(0.0)));

@@ -160,7 +160,7 @@ async fn listen(
         });
     }
     let keys = Keys::new(fleet);
-    let pose_key = keys.all_uavs(Topic::Pose);
+    let pose_key = keys.all_uavs_of::<towernav_protocol::PoseEstimate>();
     let poses = session
         .declare_subscriber(pose_key.clone())
         .advanced()
@@ -224,7 +224,7 @@ async fn command_done<W: Fn()>(
 ) -> bool {
     match command {
         NetCommand::Correct(correction) => {
-            let key = keys.uav(&correction.uav, Topic::Correction);
+            let key = keys.uav_key::<IdCorrection>(&correction.uav);
             let sent = match encode(&correction) {
                 Ok(bytes) => {
                     listener.record(&key, &bytes);

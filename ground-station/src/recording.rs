@@ -198,7 +198,7 @@ pub fn spawn_replay(
 mod tests {
     use super::*;
     use crate::test_support::pose;
-    use towernav_protocol::{NodeId, Topic, encode};
+    use towernav_protocol::{NodeId, PoseEstimate, encode};
 
     #[test]
     fn a_recording_replays_the_same_events_in_order() {
@@ -211,7 +211,7 @@ mod tests {
         for seq in 0..3 {
             let p = pose("uav1", 30.52, 114.36, seq);
             rec.write(
-                &keys.uav(&uav, Topic::Pose),
+                &keys.uav_key::<PoseEstimate>(&uav),
                 &encode(&p).expect("encode"),
                 10 + seq,
             )

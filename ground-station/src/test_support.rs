@@ -28,7 +28,7 @@ pub fn pose(uav: &str, lat_deg: f64, lon_deg: f64, seq: u64) -> PoseEstimate {
             [0.0, 0.0, 1.0, 0.0],
             [0.0, 0.0, 0.0, 0.0],
         ],
-        method: PoseMethod::SeedLbl,
+        method: PoseMethod::PaperLbl,
         towers_used: vec!["A1".into(), "B1".into()],
     }
 }

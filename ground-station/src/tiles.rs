@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use egui_plot::{PlotImage, PlotPoint, PlotUi};
+use towernav_geometry::web_mercator::{tile_corner, tile_of};
 use towernav_geometry::{Datum, Geodetic};
 
 /// Tiles farther than this from the datum are not loaded.
@@ -18,26 +19,6 @@ pub enum TileError {
     NotAFolder(PathBuf),
     #[error("tile folder {dir}: no zoom level folder (0..=19) with tiles")]
     NoZoom { dir: PathBuf },
-}
-
-/// The slippy-map tile holding a point, at `zoom`.
-pub fn tile_of(lat_deg: f64, lon_deg: f64, zoom: u8) -> (u32, u32) {
-    let n = f64::from(1u32 << zoom);
-    let x = (lon_deg + 180.0) / 360.0 * n;
-    let lat = lat_deg.to_radians();
-    let y = (1.0 - (lat.tan() + 1.0 / lat.cos()).ln() / std::f64::consts::PI) / 2.0 * n;
-    (x.floor() as u32, y.floor() as u32)
-}
-
-/// The north-west corner of a tile.
-pub fn tile_corner(x: u32, y: u32, zoom: u8) -> (f64, f64) {
-    let n = f64::from(1u32 << zoom);
-    let lon = f64::from(x) / n * 360.0 - 180.0;
-    let lat = (std::f64::consts::PI * (1.0 - 2.0 * f64::from(y) / n))
-        .sinh()
-        .atan()
-        .to_degrees();
-    (lat, lon)
 }
 
 struct LoadedTile {
@@ -144,26 +125,6 @@ impl TileLayer {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_point_lies_inside_its_tile() {
-        for zoom in [1u8, 10, 16, 19] {
-            let (lat, lon) = (30.5205, 114.3601);
-            let (x, y) = tile_of(lat, lon, zoom);
-            let (north, west) = tile_corner(x, y, zoom);
-            let (south, east) = tile_corner(x + 1, y + 1, zoom);
-            assert!(
-                west <= lon && lon < east,
-                "zoom {zoom}: {west} {lon} {east}"
-            );
-            assert!(
-                south < lat && lat <= north,
-                "zoom {zoom}: {south} {lat} {north}"
-            );
-        }
-        // Zoom 0 is the one tile of the whole world.
-        assert_eq!(tile_of(45.0, 100.0, 0), (0, 0));
-    }
 
     #[test]
     fn a_folder_without_zoom_levels_is_refused_with_its_path() {

@@ -4,8 +4,9 @@
 //! `cargo bench -p towernav-landmark-db --bench landmarks`
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use towernav_geometry::GeoIndex;
 use towernav_geometry::Geodetic;
-use towernav_landmark_db::{Author, LandmarkDb, LandmarkIndex, export_csv, import_csv};
+use towernav_landmark_db::{Author, LandmarkDb, export_csv, import_csv};
 use towernav_protocol::{LandmarkRecord, TowerType};
 
 const N: usize = 100_000;
@@ -57,12 +58,13 @@ fn benches(c: &mut Criterion) {
             BatchSize::PerIteration,
         )
     });
+    let feet: Vec<_> = records.iter().map(|r| r.foot()).collect();
     group.bench_function("build_index_100k", |b| {
-        b.iter(|| LandmarkIndex::new(&records).len())
+        b.iter(|| GeoIndex::from_points(&feet).len())
     });
     group.finish();
 
-    let index = LandmarkIndex::new(&records);
+    let index = GeoIndex::from_points(&feet);
     let centre = Geodetic {
         lat_deg: 30.4,
         lon_deg: 114.4,

@@ -9,8 +9,8 @@ use towernav_protocol::LandmarkRecord;
 use crate::csv_io::parse_csv;
 use crate::error::{ImportError, RowProblem};
 use crate::formats::{OsmMapping, parse_geojson, parse_osm_xml, parse_overpass_json};
-use crate::spatial::LandmarkIndex;
 use crate::store::{Author, LandmarkDb};
+use towernav_geometry::GeoIndex;
 
 /// Records that parsed and validated, and every row that did not.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -202,7 +202,8 @@ pub fn likely_mistakes(
         .chain(incoming)
         .cloned()
         .collect();
-    let index = LandmarkIndex::new(&after);
+    let feet: Vec<_> = after.iter().map(LandmarkRecord::foot).collect();
+    let index = GeoIndex::from_points(&feet);
     for r in incoming {
         if existing_ids.contains(r.id.as_str()) {
             warnings.push(warn(

@@ -9,7 +9,6 @@ mod fields;
 pub mod formats;
 pub mod import;
 pub mod load;
-pub mod spatial;
 pub mod store;
 pub mod validate;
 
@@ -24,7 +23,6 @@ pub use import::{
     import_file, import_parsed, likely_mistakes,
 };
 pub use load::load_towers;
-pub use spatial::LandmarkIndex;
 pub use store::{Author, BUSY_TIMEOUT, Expect, LandmarkDb};
 pub use validate::{ValidationError, validate};
 

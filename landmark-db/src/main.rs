@@ -251,72 +251,10 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 min_spacing_m,
                 ..ImportOptions::default()
             };
-            let report = match import_file(&mut db, &file, format.into(), &options, &author) {
-                Ok(report) => report,
-                Err(e @ ImportError::Rejected { .. }) => {
-                    return Err(refused(format!(
-                        "{e}\n(nothing was imported; fix the rows or use --skip-invalid)"
-                    )));
-                }
-                Err(e) => return Err(e.into()),
-            };
-            for p in &report.skipped {
-                eprintln!("skipped {p}");
-            }
-            print_checks(&report.warnings);
-            println!(
-                "imported {} towers from {} (revision {}); {} skipped, {} to check",
-                report.imported,
-                file.display(),
-                report.revision,
-                report.skipped.len(),
-                report.warnings.len()
-            );
+            import(&mut db, &file, format, &options, &author)?;
         }
-        Command::Export { file, format } => {
-            let records = db.list()?;
-            let text = match format {
-                FileFormat::Csv => {
-                    let mut out = Vec::new();
-                    export_csv(&records, &mut out)?;
-                    out
-                }
-                FileFormat::Geojson => export_geojson(&records)?.into_bytes(),
-                FileFormat::Osm => export_osm_xml(&records).into_bytes(),
-                FileFormat::Overpass => {
-                    return Err(refused(
-                        "Overpass JSON is import only; export to csv, geojson or osm".into(),
-                    ));
-                }
-            };
-            if file.as_os_str() == "-" {
-                use std::io::Write;
-                std::io::stdout().lock().write_all(&text)?;
-            } else {
-                std::fs::write(&file, text)
-                    .with_context(|| format!("writing {}", file.display()))?;
-                eprintln!("exported {} towers to {}", records.len(), file.display());
-            }
-        }
-        Command::List => {
-            let mut table = Table::new();
-            table.load_style(UTF8_BORDERS_ONLY).set_header([
-                "id", "type", "lat", "lon", "elev m", "height m", "line", "rev",
-            ]);
-            for r in db.list()? {
-                table.add_row([
-                    r.id,
-                    r.tower_type.to_string(),
-                    format!("{:.6}", r.lat_deg),
-                    format!("{:.6}", r.lon_deg),
-                    format!("{:.1}", r.ground_elev_m),
-                    format!("{:.1}", r.height_m),
-                    r.line_name.unwrap_or_default(),
-                    r.revision.to_string(),
-                ]);
-            }
-            println!("{table}");
-        }
+        Command::Export { file, format } => export(&db, &file, format)?,
+        Command::List => list(&db)?,
         Command::Show { id } => {
             let r = db
                 .get(&id)?
@@ -434,4 +372,85 @@ fn utc(unix_s: i64) -> String {
 
 fn serde_json_pretty(r: &LandmarkRecord) -> String {
     serde_json::to_string_pretty(r).unwrap_or_else(|e| format!("{r:?} ({e})"))
+}
+
+/// `import`: one transaction, then the skipped rows and the checks.
+fn import(
+    db: &mut LandmarkDb,
+    file: &std::path::Path,
+    format: FileFormat,
+    options: &ImportOptions,
+    author: &Author,
+) -> Result<(), Failure> {
+    let report = match import_file(db, file, format.into(), options, author) {
+        Ok(report) => report,
+        Err(e @ ImportError::Rejected { .. }) => {
+            return Err(refused(format!(
+                "{e}\n(nothing was imported; fix the rows or use --skip-invalid)"
+            )));
+        }
+        Err(e) => return Err(e.into()),
+    };
+    for p in &report.skipped {
+        eprintln!("skipped {p}");
+    }
+    print_checks(&report.warnings);
+    println!(
+        "imported {} towers from {} (revision {}); {} skipped, {} to check",
+        report.imported,
+        file.display(),
+        report.revision,
+        report.skipped.len(),
+        report.warnings.len()
+    );
+    Ok(())
+}
+
+/// `export`: the whole set, to a file or standard output.
+fn export(db: &LandmarkDb, file: &std::path::Path, format: FileFormat) -> Result<(), Failure> {
+    let records = db.list()?;
+    let text = match format {
+        FileFormat::Csv => {
+            let mut out = Vec::new();
+            export_csv(&records, &mut out)?;
+            out
+        }
+        FileFormat::Geojson => export_geojson(&records)?.into_bytes(),
+        FileFormat::Osm => export_osm_xml(&records).into_bytes(),
+        FileFormat::Overpass => {
+            return Err(refused(
+                "Overpass JSON is import only; export to csv, geojson or osm".into(),
+            ));
+        }
+    };
+    if file.as_os_str() == "-" {
+        use std::io::Write;
+        std::io::stdout().lock().write_all(&text)?;
+    } else {
+        std::fs::write(file, text).with_context(|| format!("writing {}", file.display()))?;
+        eprintln!("exported {} towers to {}", records.len(), file.display());
+    }
+    Ok(())
+}
+
+/// `list`: one row per tower.
+fn list(db: &LandmarkDb) -> Result<(), Failure> {
+    let mut table = Table::new();
+    table.load_style(UTF8_BORDERS_ONLY).set_header([
+        "id", "type", "lat", "lon", "elev m", "height m", "line", "rev",
+    ]);
+    for r in db.list()? {
+        table.add_row([
+            r.id,
+            r.tower_type.to_string(),
+            format!("{:.6}", r.lat_deg),
+            format!("{:.6}", r.lon_deg),
+            format!("{:.1}", r.ground_elev_m),
+            format!("{:.1}", r.height_m),
+            r.line_name.unwrap_or_default(),
+            r.revision.to_string(),
+        ]);
+    }
+    println!("{table}");
+    Ok(())
 }

@@ -119,7 +119,7 @@ mod tests {
                 [0.0, 0.0, 4.0, 0.0],
                 [0.0, 0.0, 0.0, 0.01],
             ],
-            method: PoseMethod::SeedLbl,
+            method: PoseMethod::PaperLbl,
             towers_used: towers,
         }
     }

@@ -4,6 +4,7 @@
 //! - `towernav/<fleet>/landmarks/changes`: published landmark changes;
 //! - `towernav/<fleet>/landmarks/query`: queryable for the landmark set.
 
+use crate::codec::Message;
 use crate::ids::{IdError, NodeId};
 
 const ROOT: &str = "towernav";
@@ -59,6 +60,12 @@ impl Topic {
     }
 }
 
+/// A payload that travels on a per-UAV key: its topic is paired with it
+/// here, in code, so a key cannot be built for the wrong payload.
+pub trait UavMessage: Message {
+    const TOPIC: Topic;
+}
+
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum KeyError {
     #[error("key {key:?} is not of the form towernav/<fleet>/uav/<uav>/<topic>")]
@@ -98,6 +105,16 @@ impl Keys {
 
     pub fn uav(&self, uav: &NodeId, topic: Topic) -> String {
         format!("{ROOT}/{}/uav/{uav}/{}", self.fleet, topic.as_str())
+    }
+
+    /// The key one UAV's `M` travels on.
+    pub fn uav_key<M: UavMessage>(&self, uav: &NodeId) -> String {
+        self.uav(uav, M::TOPIC)
+    }
+
+    /// Every UAV's key for `M`, e.g. all poses of the fleet.
+    pub fn all_uavs_of<M: UavMessage>(&self) -> String {
+        self.all_uavs(M::TOPIC)
     }
 
     /// Every UAV's key for one topic, e.g. all poses of the fleet.

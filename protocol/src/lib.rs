@@ -13,5 +13,5 @@ pub mod session;
 
 pub use codec::{DecodeError, EncodeError, Message, SCHEMA_VERSION, decode, encode};
 pub use ids::{IdError, NodeId};
-pub use keys::{KeyError, Keys, Topic, UavKey};
+pub use keys::{KeyError, Keys, Topic, UavKey, UavMessage};
 pub use messages::*;

@@ -1,10 +1,11 @@
 //! The messages. Units are in the field names; angles are radians unless named `_deg`.
 
 use serde::{Deserialize, Serialize};
-use towernav_geometry::PixelBox;
+use towernav_geometry::{Geodetic, PixelBox};
 
 use crate::codec::Message;
 use crate::ids::NodeId;
+use crate::keys::{Topic, UavMessage};
 
 /// The detector's tower classes; the landmark database uses the same set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -52,14 +53,17 @@ impl std::fmt::Display for TowerType {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PoseMethod {
-    /// The seed's localization by landmarks: level camera, mean over towers.
-    SeedLbl,
+    /// The paper's localization by landmarks: level camera, mean over towers.
+    /// On the wire as `seed_lbl`, its name since the first release.
+    #[serde(rename = "seed_lbl", alias = "paper_lbl")]
+    PaperLbl,
     /// Ours, one frame: attitude-compensated rays, robust least squares over towers.
     RaysLbl,
     /// Ours fused over time by the EKF.
     RaysEkf,
-    /// The seed's fixes fused over time by the EKF.
-    SeedEkf,
+    /// The paper's fixes fused over time by the EKF; on the wire as `seed_ekf`.
+    #[serde(rename = "seed_ekf", alias = "paper_ekf")]
+    PaperEkf,
 }
 
 /// One pose estimate of one UAV for one frame.
@@ -224,6 +228,15 @@ pub struct LandmarkRecord {
 }
 
 impl LandmarkRecord {
+    /// Where the tower stands: its foot, on the ellipsoid's height of the ground.
+    pub fn foot(&self) -> Geodetic {
+        Geodetic {
+            lat_deg: self.lat_deg,
+            lon_deg: self.lon_deg,
+            height_m: self.ground_elev_m,
+        }
+    }
+
     /// A record with the required survey fields and no optional ones.
     pub fn new(
         id: impl Into<String>,
@@ -270,17 +283,32 @@ pub struct LandmarkChange {
 impl Message for PoseEstimate {
     const KIND: &'static str = "pose";
 }
+impl UavMessage for PoseEstimate {
+    const TOPIC: Topic = Topic::Pose;
+}
 impl Message for TrackReport {
     const KIND: &'static str = "tracks";
+}
+impl UavMessage for TrackReport {
+    const TOPIC: Topic = Topic::Tracks;
 }
 impl Message for StatusHeartbeat {
     const KIND: &'static str = "status";
 }
+impl UavMessage for StatusHeartbeat {
+    const TOPIC: Topic = Topic::Status;
+}
 impl Message for IdCorrection {
     const KIND: &'static str = "id_correction";
 }
+impl UavMessage for IdCorrection {
+    const TOPIC: Topic = Topic::Correction;
+}
 impl Message for CorrectionAck {
     const KIND: &'static str = "correction_ack";
+}
+impl UavMessage for CorrectionAck {
+    const TOPIC: Topic = Topic::CorrectionAck;
 }
 impl Message for LandmarkRecord {
     const KIND: &'static str = "landmark";
@@ -311,6 +339,9 @@ pub struct DetectionReport {
 impl Message for DetectionReport {
     const KIND: &'static str = "detection_report";
 }
+impl UavMessage for DetectionReport {
+    const TOPIC: Topic = Topic::Detections;
+}
 
 /// A JPEG of the camera view, sent at a low rate for the operator.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -328,6 +359,9 @@ pub struct Preview {
 impl Message for Preview {
     const KIND: &'static str = "preview";
 }
+impl UavMessage for Preview {
+    const TOPIC: Topic = Topic::Preview;
+}
 
 /// Where a simulated UAV really was at a frame: published only by edges on
 /// the simulator, so the ground station can draw the true track beside the estimate.
@@ -343,6 +377,9 @@ pub struct TruthPose {
 
 impl Message for TruthPose {
     const KIND: &'static str = "truth";
+}
+impl UavMessage for TruthPose {
+    const TOPIC: Topic = Topic::Truth;
 }
 
 /// Everything the pipeline reads of one camera frame: the detector's boxes and the IMU attitude
@@ -400,5 +437,32 @@ mod base64_bytes {
         STANDARD
             .decode(text.as_bytes())
             .map_err(|e| serde::de::Error::custom(format!("jpeg is not base64: {e}")))
+    }
+}
+
+#[cfg(test)]
+mod topic_tests {
+    use super::*;
+
+    /// Each per-UAV topic carries exactly one payload type, and each such
+    /// payload one topic: the pairing is total and one-to-one.
+    #[test]
+    fn every_topic_has_one_payload() {
+        let pairs = [
+            (PoseEstimate::TOPIC, PoseEstimate::KIND),
+            (TrackReport::TOPIC, TrackReport::KIND),
+            (StatusHeartbeat::TOPIC, StatusHeartbeat::KIND),
+            (IdCorrection::TOPIC, IdCorrection::KIND),
+            (CorrectionAck::TOPIC, CorrectionAck::KIND),
+            (DetectionReport::TOPIC, DetectionReport::KIND),
+            (Preview::TOPIC, Preview::KIND),
+            (TruthPose::TOPIC, TruthPose::KIND),
+        ];
+        for topic in Topic::ALL {
+            let carried: Vec<_> = pairs.iter().filter(|(t, _)| *t == topic).collect();
+            assert_eq!(carried.len(), 1, "{topic:?} carries {carried:?}");
+        }
+        let kinds: std::collections::HashSet<_> = pairs.iter().map(|(_, k)| k).collect();
+        assert_eq!(kinds.len(), pairs.len());
     }
 }

@@ -1,11 +1,11 @@
-//! Rendering speed: one 1280x720 frame of the seed field, default conditions, one thread.
+//! Rendering speed: one 1280x720 frame of the paper's field, default conditions, one thread.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use towernav_sim::{Conditions, Renderer, Scenario};
 
 fn render(c: &mut Criterion) {
     let scenario =
-        Scenario::preset(towernav_sim::World::seed_field(), "seed-path-1", 1).expect("preset");
+        Scenario::preset(towernav_sim::World::paper_field(), "paper-path-1", 1).expect("preset");
     let renderer = Renderer::new(&scenario.world, scenario.camera, 1);
     let mut buffers = renderer.buffers();
     let conditions = Conditions::default();

@@ -23,7 +23,7 @@ pub struct StraightFlight {
 
 impl StraightFlight {
     /// East along the plate's centre line, 30 +/- 5 m high, 10 m/s for 95 s.
-    pub fn seed_centre_line() -> Self {
+    pub fn paper_centre_line() -> Self {
         Self {
             start_in_world: Point3::new(0.0, 250.0, 30.0),
             yaw: 0.0,
@@ -99,8 +99,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_centre_line_flight_stays_in_the_seed_envelope() {
-        let flight = StraightFlight::seed_centre_line();
+    fn the_centre_line_flight_stays_in_the_paper_envelope() {
+        let flight = StraightFlight::paper_centre_line();
         for i in 0..=950 {
             let p = flight.pose_at(i as f64 * 0.1).position_in_world;
             assert!((20.0..=40.0).contains(&p.z), "height {}", p.z);

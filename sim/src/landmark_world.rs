@@ -34,7 +34,7 @@ pub enum LandmarkWorldError {
 
 impl World {
     /// The world a user chose: the towers `load` reads from `file`, one drawn
-    /// from `random_seed`, or the seed's field. `load` is the caller's I/O.
+    /// from `random_seed`, or the paper's field. `load` is the caller's I/O.
     pub fn chosen<E: std::error::Error + Send + Sync + 'static>(
         file: Option<&std::path::Path>,
         random_seed: Option<u64>,
@@ -52,7 +52,7 @@ impl World {
                 })
             }
             (None, Some(seed)) => Ok(Self::random(seed, &crate::world::WorldParams::default())),
-            (None, None) => Ok(Self::seed_field()),
+            (None, None) => Ok(Self::paper_field()),
         }
     }
 
@@ -196,7 +196,7 @@ mod tests {
 
     #[test]
     fn a_worlds_landmarks_build_the_same_towers_and_lines_back() {
-        let seed = World::seed_field();
+        let seed = World::paper_field();
         let back = World::from_landmarks(&seed.landmarks()).expect("builds");
         assert_eq!(back.towers.len(), seed.towers.len());
         // The plate moved; the towers' relative layout did not.
@@ -239,7 +239,7 @@ mod tests {
 
     #[test]
     fn line_names_group_towers_and_bad_towers_are_named() {
-        let mut records = World::seed_field().landmarks();
+        let mut records = World::paper_field().landmarks();
         for r in &mut records {
             r.line_name = Some("one line".into());
         }

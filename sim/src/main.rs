@@ -31,7 +31,7 @@ enum Weather {
 
 #[derive(clap::Args)]
 struct WorldArg {
-    /// Use a seeded random world instead of the seed's 18-tower field.
+    /// Use a seeded random world instead of the paper's 18-tower field.
     #[arg(long, conflicts_with = "world")]
     random_world: Option<u64>,
     /// Build the world from a landmark CSV or database (positions, heights,
@@ -53,8 +53,8 @@ impl WorldArg {
 
 #[derive(clap::Args)]
 struct PlanArg {
-    /// A named flight plan: seed-path-1, seed-path-2, straight, out-and-back, lawnmower.
-    #[arg(long, default_value = "seed-path-1", conflicts_with = "plan")]
+    /// A named flight plan: paper-path-1, paper-path-2, straight, out-and-back, lawnmower.
+    #[arg(long, default_value = "paper-path-1", conflicts_with = "plan")]
     preset: String,
     /// A waypoint file (TOML, as in sim/flights/).
     #[arg(long)]
@@ -197,7 +197,7 @@ fn main() -> anyhow::Result<()> {
                         std::path::absolute(path).unwrap_or_else(|_| path.clone()),
                     ),
                     (None, Some(seed)) => ReplayWorld::Random(seed),
-                    (None, None) => ReplayWorld::SeedField,
+                    (None, None) => ReplayWorld::PaperField,
                 },
                 flight: plan.spelled(),
             };

@@ -163,7 +163,7 @@ mod tests {
 
     #[test]
     fn same_seed_same_detections() {
-        let scenario = Scenario::seed(1);
+        let scenario = Scenario::paper(1);
         let truth = scenario.truth(100);
         let mut a = OracleDetector::new(OracleParams::default(), 7);
         let mut b = OracleDetector::new(OracleParams::default(), 7);
@@ -175,7 +175,7 @@ mod tests {
 
     #[test]
     fn out_of_range_rates_do_not_panic() {
-        let truth = Scenario::seed(1).truth(0);
+        let truth = Scenario::paper(1).truth(0);
         let params = OracleParams {
             miss_probability: f64::NAN,
             false_positive_rate: 7.0,
@@ -196,7 +196,7 @@ mod tests {
 
     #[test]
     fn towers_beyond_range_are_never_reported() {
-        let truth = Scenario::seed(1).truth(0);
+        let truth = Scenario::paper(1).truth(0);
         let params = OracleParams {
             miss_probability: 0.0,
             min_height_px: 0.0,
@@ -208,14 +208,17 @@ mod tests {
             .iter()
             .filter(|b| b.distance_m > params.max_range_m)
             .count();
-        assert!(far > 0, "the seed field has towers past the oracle's range");
+        assert!(
+            far > 0,
+            "the paper's field has towers past the oracle's range"
+        );
         let dets = OracleDetector::new(params, 1).detect(&truth, 1280.0, 720.0);
         assert_eq!(dets.len(), truth.boxes.len() - far);
     }
 
     #[test]
     fn noiseless_oracle_reports_truth() {
-        let scenario = Scenario::seed(1);
+        let scenario = Scenario::paper(1);
         let truth = scenario.truth(0);
         let params = OracleParams {
             edge_sigma_px: 0.0,
@@ -236,7 +239,7 @@ mod tests {
 
     #[test]
     fn misses_and_false_positives_happen_at_about_their_rates() {
-        let scenario = Scenario::seed(1);
+        let scenario = Scenario::paper(1);
         let params = OracleParams {
             miss_probability: 0.2,
             false_positive_rate: 0.5,
@@ -262,7 +265,7 @@ mod tests {
     }
 
     fn one_tower(height_px: f64, occluded: f64) -> FrameTruth {
-        let mut truth = Scenario::seed(1).truth(600);
+        let mut truth = Scenario::paper(1).truth(600);
         truth.boxes.truncate(1);
         let b = &mut truth.boxes[0];
         b.bbox = PixelBox::new(600.0, 300.0, 600.0 + height_px / 4.0, 300.0 + height_px);

@@ -406,7 +406,7 @@ mod tests {
 
     #[test]
     fn the_turn_rolls_and_reverses_heading() {
-        let tr = flown("seed-path-1");
+        let tr = flown("paper-path-1");
         let max_roll = tr
             .samples
             .iter()
@@ -499,7 +499,7 @@ mod tests {
     #[test]
     fn the_airframe_lags_the_command_it_is_given() {
         // A lazier loop reaches the same turn with a smaller rate.
-        let plan = FlightPlan::preset("seed-path-1").expect("preset");
+        let plan = FlightPlan::preset("paper-path-1").expect("preset");
         let quick = fly(&plan, &QuadParams::default(), 1);
         let lazy = fly(
             &plan,

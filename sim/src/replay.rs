@@ -10,7 +10,7 @@ use crate::Scenario;
 /// The world as the edge's `[source]` names it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ReplayWorld {
-    SeedField,
+    PaperField,
     Random(u64),
     /// A landmark CSV or database the world was built from.
     File(PathBuf),
@@ -34,7 +34,7 @@ impl ReplaySource {
         let source = match self {
             Self::Oracle { world, flight } => {
                 let world = match world {
-                    ReplayWorld::SeedField => String::new(),
+                    ReplayWorld::PaperField => String::new(),
                     ReplayWorld::Random(seed) => format!("random_world = {seed}\n"),
                     ReplayWorld::File(path) => {
                         format!("world = {:?}\n", path.display().to_string())

@@ -54,13 +54,13 @@ impl Default for ImuParams {
 }
 
 impl Scenario {
-    /// The walking skeleton's scenario: the seed's field, the level centre-line
+    /// The walking skeleton's scenario: the paper's field, the level centre-line
     /// flight at 30 frames/s, a 1280x720 camera, and the skeleton's simple oracle.
     /// `preset` gives quadrotor attitude and the realistic oracle.
-    pub fn seed(seed: u64) -> Self {
+    pub fn paper(seed: u64) -> Self {
         Self {
-            world: World::seed_field(),
-            flight: Flight::Straight(StraightFlight::seed_centre_line()),
+            world: World::paper_field(),
+            flight: Flight::Straight(StraightFlight::paper_centre_line()),
             camera: PinholeCamera::default_hd(),
             fps: 30.0,
             seed,
@@ -226,7 +226,7 @@ mod tests {
 
     #[test]
     fn towers_are_in_view_until_the_uav_passes_the_last_ones() {
-        let scenario = Scenario::seed(0);
+        let scenario = Scenario::paper(0);
         let frames: Vec<_> = scenario.frames().collect();
         assert_eq!(frames.len(), 2850);
         for (truth, _) in &frames {
@@ -244,12 +244,12 @@ mod tests {
 
     #[test]
     fn replay_is_deterministic() {
-        let a: Vec<_> = Scenario::seed(4)
+        let a: Vec<_> = Scenario::paper(4)
             .frames()
             .take(50)
             .map(|(_, i)| i)
             .collect();
-        let b: Vec<_> = Scenario::seed(4)
+        let b: Vec<_> = Scenario::paper(4)
             .frames()
             .take(50)
             .map(|(_, i)| i)

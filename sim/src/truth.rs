@@ -306,7 +306,7 @@ mod tests {
             ..near.clone()
         };
         let world = World {
-            datum: World::seed_field().datum,
+            datum: World::paper_field().datum,
             towers: vec![near, far],
             lines: Vec::new(),
             distractors: Vec::new(),

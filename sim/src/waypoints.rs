@@ -42,14 +42,28 @@ pub enum PlanError {
     UnknownPreset { name: String, known: String },
 }
 
-/// Presets by name: the seed's two simulated paths, a straight pass, an out-and-back and a lawnmower.
+/// Presets by name: the paper's two simulated paths, a straight pass, an out-and-back and a lawnmower.
 pub const PRESETS: [(&str, &str); 5] = [
-    ("seed-path-1", include_str!("../flights/seed-path-1.toml")),
-    ("seed-path-2", include_str!("../flights/seed-path-2.toml")),
+    ("paper-path-1", include_str!("../flights/paper-path-1.toml")),
+    ("paper-path-2", include_str!("../flights/paper-path-2.toml")),
     ("straight", include_str!("../flights/straight.toml")),
     ("out-and-back", include_str!("../flights/out-and-back.toml")),
     ("lawnmower", include_str!("../flights/lawnmower.toml")),
 ];
+
+/// Older preset names users may still type: `seed-path-N` is `paper-path-N`.
+pub const PRESET_ALIASES: [(&str, &str); 2] = [
+    ("seed-path-1", "paper-path-1"),
+    ("seed-path-2", "paper-path-2"),
+];
+
+/// The preset a name means, through its alias if it has one.
+pub fn preset_name(name: &str) -> &str {
+    PRESET_ALIASES
+        .iter()
+        .find(|(alias, _)| *alias == name)
+        .map_or(name, |(_, preset)| preset)
+}
 
 impl FlightPlan {
     /// Parse and check a plan; `origin` names the file in errors.
@@ -93,10 +107,11 @@ impl FlightPlan {
     }
 
     pub fn preset(name: &str) -> Result<Self, PlanError> {
+        let wanted = preset_name(name);
         let (_, text) =
             PRESETS
                 .iter()
-                .find(|(n, _)| *n == name)
+                .find(|(n, _)| *n == wanted)
                 .ok_or_else(|| PlanError::UnknownPreset {
                     name: name.into(),
                     known: PRESETS.map(|(n, _)| n).join(", "),
@@ -161,8 +176,9 @@ pub enum PlanSource {
 impl PlanSource {
     /// A preset when `text` names one; otherwise a path to a plan file.
     pub fn parse(text: &str) -> Self {
-        if PRESETS.iter().any(|(name, _)| *name == text) {
-            Self::Preset(text.into())
+        let preset = preset_name(text);
+        if PRESETS.iter().any(|(name, _)| *name == preset) {
+            Self::Preset(preset.into())
         } else {
             Self::File(text.into())
         }
@@ -249,6 +265,18 @@ mod tests {
     }
 
     #[test]
+    fn the_older_preset_names_still_fly_the_paper_paths() {
+        assert_eq!(
+            PlanSource::parse("seed-path-2"),
+            PlanSource::Preset("paper-path-2".into())
+        );
+        assert_eq!(
+            FlightPlan::preset("seed-path-1").expect("alias"),
+            FlightPlan::preset("paper-path-1").expect("preset")
+        );
+    }
+
+    #[test]
     fn a_plan_is_a_preset_by_name_or_else_a_file() {
         assert_eq!(
             PlanSource::parse("lawnmower"),
@@ -303,6 +331,6 @@ mod tests {
             .to_string();
         assert!(err.contains("g.toml"), "{err}");
         let err = FlightPlan::preset("nope").unwrap_err().to_string();
-        assert!(err.contains("seed-path-1"), "{err}");
+        assert!(err.contains("paper-path-1"), "{err}");
     }
 }

@@ -1,5 +1,5 @@
 //! Worlds: towers standing in power lines, and distractors, on a flat plate.
-//! The seed's field (18 towers of four types on 1000 m x 500 m) and seeded random fields.
+//! The paper's field (18 towers of four types on 1000 m x 500 m) and seeded random fields.
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -155,7 +155,7 @@ const SEED_LINES: [(TowerType, f64, &[f64]); 4] = [
     (TowerType::D, 100.0, &[100.0, 350.0, 600.0, 850.0]),
 ];
 
-fn seed_datum() -> Datum {
+fn paper_datum() -> Datum {
     Datum::new(Geodetic {
         lat_deg: 30.52,
         lon_deg: 114.36,
@@ -167,7 +167,7 @@ impl World {
     /// The plate's south-west corner is the datum; east is +x, north is +y.
     /// A and B stand 50 m either side of the centre line, C and D 150 m out.
     /// A few trees and sheds stand off the path; none hides the A and B lines.
-    pub fn seed_field() -> Self {
+    pub fn paper_field() -> Self {
         let mut towers = Vec::new();
         let mut lines = Vec::new();
         for &(tower_type, north, easts) in &SEED_LINES {
@@ -203,7 +203,7 @@ impl World {
             },
         ];
         Self {
-            datum: seed_datum(),
+            datum: paper_datum(),
             towers,
             lines,
             distractors,
@@ -289,7 +289,7 @@ impl World {
                 .all(|t| (t.foot_in_world - d.foot_in_world()).xy().norm() > 25.0)
         });
         Self {
-            datum: seed_datum(),
+            datum: paper_datum(),
             towers,
             lines,
             distractors,
@@ -340,8 +340,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_seed_field_has_18_towers_of_4_types_on_the_plate() {
-        let world = World::seed_field();
+    fn the_paper_field_has_18_towers_of_4_types_on_the_plate() {
+        let world = World::paper_field();
         assert_eq!(world.towers.len(), 18);
         for t in TowerType::ALL {
             assert!(world.towers.iter().any(|x| x.tower_type == t));
@@ -380,7 +380,7 @@ mod tests {
 
     #[test]
     fn landmarks_map_back_onto_the_plate() {
-        let world = World::seed_field();
+        let world = World::paper_field();
         for (tower, record) in world.towers.iter().zip(world.landmarks()) {
             let g =
                 Geodetic::new(record.lat_deg, record.lon_deg, record.ground_elev_m).expect("valid");

@@ -143,7 +143,7 @@ fn flight_and_render_write_trajectory_truth_and_a_picture() {
     sim(&[
         "render",
         "--preset",
-        "seed-path-1",
+        "paper-path-1",
         "--time",
         "20",
         "--out",

@@ -10,7 +10,7 @@ use towernav_sim::{Conditions, Renderer, SimTower, World};
 
 fn world_with(towers: Vec<SimTower>) -> World {
     World {
-        datum: World::seed_field().datum,
+        datum: World::paper_field().datum,
         towers,
         lines: Vec::new(),
         distractors: Vec::new(),

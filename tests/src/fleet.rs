@@ -9,8 +9,8 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime};
 
-use towernav_edge::shell::daemon::config::{DetectorKind, EdgeConfig, ZenohMode};
-use towernav_edge::shell::edge_cmd::run_edge;
+use towernav_edge::daemon::config::{DetectorKind, EdgeConfig, ZenohMode};
+use towernav_edge::edge_cmd::run_edge;
 use towernav_ground_station::recording::Recorder;
 use towernav_protocol::session::{Endpoints, client_config, router_config};
 use towernav_protocol::{Keys, NodeId, PoseEstimate, Topic, decode};
@@ -107,6 +107,7 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
         Some(path) => Some(Recorder::create(path)?),
         None => None,
     };
+    let (poses_tx, mut poses_rx) = tokio::sync::watch::channel(0u64);
     let reader = tokio::spawn({
         let seen = seen.clone();
         async move {
@@ -144,6 +145,7 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
                 if let Some(age) = age_ms {
                     seen.1.push(age);
                 }
+                poses_tx.send_modify(|n| *n += 1);
             }
             if let Some(rec) = recorder {
                 rec.finish().map(|_| ())
@@ -170,19 +172,14 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
         report.published.insert(uav, published);
     }
     report.wall_s = start.elapsed().as_secs_f64();
-    // Wait until every published pose has arrived, or a generous grace period.
+    // Wait until every published pose has arrived, or a generous grace period;
+    // the report counts what did not.
     let expected: u64 = report.published.values().sum();
-    let grace = std::time::Instant::now();
-    loop {
-        let got: u64 = {
-            let seen = seen.lock().unwrap_or_else(|e| e.into_inner());
-            seen.0.values().map(|s| s.len() as u64).sum()
-        };
-        if got >= expected || grace.elapsed() > Duration::from_secs(5) {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    let _ = tokio::time::timeout(
+        Duration::from_secs(5),
+        poses_rx.wait_for(|n| *n >= expected),
+    )
+    .await;
     drop(subscriber);
     let recorded = tokio::time::timeout(Duration::from_secs(5), reader).await;
     if let Ok(Ok(Err(e))) = recorded {

@@ -1,12 +1,42 @@
 //! Helpers shared by the cross-crate tests and benches in `tests/`.
 
+use std::sync::atomic::{AtomicU16, Ordering};
+
 pub mod fleet;
 
-/// A Zenoh endpoint on a loopback port that was free a moment ago.
+/// Ports each process may hand out, in its own block below the kernel's
+/// ephemeral range (32768 and up), so a port it hands out is never one the
+/// kernel just gave a connection.
+const BLOCK: u16 = 100;
+const FIRST_PORT: u16 = 10_000;
+const BLOCKS: u32 = 200;
+
+/// A Zenoh endpoint on a loopback port that no other caller in this process
+/// has been given, and that nothing held when it was handed out.
+///
+/// Binding port 0 and dropping the socket lets the kernel give the same port
+/// to the next test that asks; here each call takes the next port of the
+/// process's own block instead.
 pub fn loopback_endpoint() -> String {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free loopback port");
-    format!("tcp/127.0.0.1:{port}")
+    static NEXT: AtomicU16 = AtomicU16::new(0);
+    let base = FIRST_PORT + (std::process::id() % BLOCKS) as u16 * BLOCK;
+    for _ in 0..BLOCK {
+        let port = base + NEXT.fetch_add(1, Ordering::Relaxed) % BLOCK;
+        if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
+            return format!("tcp/127.0.0.1:{port}");
+        }
+    }
+    panic!("no free loopback port in {base}..{}", base + BLOCK);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_two_callers_get_one_port() {
+        let ports: std::collections::HashSet<String> =
+            (0..50).map(|_| loopback_endpoint()).collect();
+        assert_eq!(ports.len(), 50);
+    }
 }

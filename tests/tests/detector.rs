@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 
 use image::{Rgb, RgbImage};
-use towernav_edge::detector::Layout;
-use towernav_edge::shell::type_classifier::TypeClassifier;
-use towernav_edge::shell::yolo::{DetectorOptions, YoloDetector};
+use towernav_core::detector::Layout;
 use towernav_geometry::PixelBox;
+use towernav_onnx::type_classifier::TypeClassifier;
+use towernav_onnx::yolo::{DetectorOptions, YoloDetector};
 use towernav_protocol::TowerType;
 use towernav_sim::{Conditions, Scenario, World};
 
@@ -174,7 +174,7 @@ fn an_empty_frame_is_an_error_naming_the_frame() {
 
 /// The shipped models the daemon runs (INT8 detector and type classifier) find every clearly visible tower (taller than 40 px,
 /// not cut by the frame edge, less than a quarter hidden) with IoU >= 0.6 and the
-/// right type, on frames of the seed's path it was never trained on.
+/// right type, on frames of the paper's path it was never trained on.
 #[test]
 #[ignore = "the shipped models (mAP50 0.906 for towers >40 px, 0.939 for those in full view) still miss some clear towers (a 74 px B at t=120 s, boxed with IoU 0.26): below the 0.95 target. Run with --ignored."]
 fn the_shipped_model_finds_the_towers_in_rendered_frames() {
@@ -185,7 +185,7 @@ fn the_shipped_model_finds_the_towers_in_rendered_frames() {
         &DetectorOptions::default(),
     )
     .expect("the shipped models load");
-    let scenario = Scenario::preset(World::seed_field(), "seed-path-1", 3).expect("preset");
+    let scenario = Scenario::preset(World::paper_field(), "paper-path-1", 3).expect("preset");
     let renderer = scenario.renderer();
     let mut buffers = renderer.buffers();
     let mut checked = 0;

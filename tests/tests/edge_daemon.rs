@@ -7,10 +7,10 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use towernav_edge::shell::collector::wait_for_peer;
-use towernav_edge::shell::daemon::config::{AttitudeKind, DetectorKind, EdgeConfig, SourceKind};
-use towernav_edge::shell::edge_cmd::run_edge;
-use towernav_edge::shell::node::open_session;
+use towernav_edge::daemon::config::{AttitudeKind, DetectorKind, EdgeConfig, SourceKind};
+use towernav_edge::edge_cmd::run_edge;
+use towernav_edge::node::open_session;
+use towernav_edge::node::wait_for_peer;
 use towernav_protocol::session::Endpoints;
 use towernav_protocol::{
     CorrectionAck, Health, IdCorrection, Keys, NodeId, PoseEstimate, StatusHeartbeat, Topic,
@@ -58,16 +58,21 @@ async fn a_subscriber_gets_every_topic_and_the_poses_match_the_truth() -> anyhow
 
     // Read while the edge runs: a subscriber that stops reading makes the publisher wait or drop.
     let received = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (poses_tx, mut poses_rx) = tokio::sync::watch::channel(0u64);
     let reader = tokio::spawn({
         let received = received.clone();
         async move {
             while let Ok(sample) = all.recv_async().await {
                 let key = sample.key_expr().as_str().to_owned();
                 let bytes = sample.payload().to_bytes().to_vec();
+                let pose = Keys::parse_uav(&key).is_ok_and(|k| k.topic == Topic::Pose);
                 received
                     .lock()
                     .unwrap_or_else(|e| e.into_inner())
                     .push((key, bytes));
+                if pose {
+                    poses_tx.send_modify(|n| *n += 1);
+                }
             }
         }
     });
@@ -83,9 +88,15 @@ async fn a_subscriber_gets_every_topic_and_the_poses_match_the_truth() -> anyhow
     );
     assert_eq!((summary.dropped, summary.failed), (0, 0));
 
-    let scenario = Scenario::seed(11);
+    let scenario = Scenario::paper(11);
     let (mut poses, mut tracks, mut detections, mut statuses) = (Vec::new(), 0, 0, Vec::new());
-    tokio::time::sleep(Duration::from_secs(2)).await;
+    // Every published pose has arrived, or the count below says how many did not.
+    let published = summary.record.poses_published;
+    let _ = tokio::time::timeout(
+        Duration::from_secs(5),
+        poses_rx.wait_for(|n| *n >= published),
+    )
+    .await;
     reader.abort();
     let samples = std::mem::take(&mut *received.lock().unwrap_or_else(|e| e.into_inner()));
     for (key, bytes) in samples {
@@ -161,11 +172,11 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
     let uav = NodeId::new("uav7")?;
     let keys = Keys::new(NodeId::new("corr")?);
     let tracks = gs
-        .declare_subscriber(keys.uav(&uav, Topic::Tracks))
+        .declare_subscriber(keys.uav_key::<TrackReport>(&uav))
         .await
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let acks = gs
-        .declare_subscriber(keys.uav(&uav, Topic::CorrectionAck))
+        .declare_subscriber(keys.uav_key::<CorrectionAck>(&uav))
         .await
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut config = oracle_config("corr", &endpoint, 900);
@@ -187,7 +198,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
             break t.clone();
         }
     };
-    let other = Scenario::seed(11)
+    let other = Scenario::paper(11)
         .world
         .landmarks()
         .into_iter()
@@ -202,7 +213,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
             tower_id: Some(tower.to_string()),
             issued_by: "test".into(),
         };
-        let key = keys.uav(&uav, Topic::Correction);
+        let key = keys.uav_key::<IdCorrection>(&uav);
         let gs = gs.clone();
         async move {
             gs.put(key, encode(&correction)?)
@@ -276,7 +287,7 @@ async fn a_corrupt_frame_is_skipped_and_counted_and_the_rest_are_processed() -> 
         dir.path().join("att.csv"),
         "time_s,roll_deg,pitch_deg,heading_deg\n0,0,0,90\n10,0,0,90\n",
     )?;
-    let world = Scenario::seed(1).world;
+    let world = Scenario::paper(1).world;
     let towers = dir.path().join("towers.csv");
     towernav_landmark_db::export_csv(&world.landmarks(), std::fs::File::create(&towers)?)?;
     let mut c = EdgeConfig {
@@ -315,7 +326,7 @@ async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> a
         at_unix_s: 0,
     };
     let mut db = LandmarkDb::open(&db_path)?;
-    db.upsert_all(&towernav_sim::World::seed_field().landmarks(), &crew)?;
+    db.upsert_all(&towernav_sim::World::paper_field().landmarks(), &crew)?;
     let towers_before = db.list()?.len() as u32;
 
     let endpoint = towernav_tests::loopback_endpoint();
@@ -330,12 +341,13 @@ async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> a
         fleet.clone(),
         db_path.clone(),
     ));
-    let status_key = Keys::new(fleet).all_uavs(Topic::Status);
+    let status_key = Keys::new(fleet).all_uavs_of::<StatusHeartbeat>();
     let statuses = gs
         .declare_subscriber(status_key)
         .await
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let loaded = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (beats_tx, mut beats_rx) = tokio::sync::watch::channel(0usize);
     let reader = tokio::spawn({
         let loaded = loaded.clone();
         async move {
@@ -345,6 +357,7 @@ async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> a
                         .lock()
                         .unwrap_or_else(|e| e.into_inner())
                         .push(s.landmarks_loaded);
+                    beats_tx.send_modify(|n| *n += 1);
                 }
             }
         }
@@ -358,8 +371,8 @@ async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> a
         tokio::spawn(
             async move { run_edge(&config, None, Arc::new(AtomicBool::new(false))).await },
         );
-    // Mid-flight, the survey crew removes two towers far from the flight.
-    tokio::time::sleep(Duration::from_millis(2000)).await;
+    // Mid-flight (the edge has reported in), the survey crew removes two towers far from the flight.
+    tokio::time::timeout(Duration::from_secs(20), beats_rx.wait_for(|n| *n >= 1)).await??;
     db.remove("D4", &crew)?;
     db.remove("C4", &crew)?;
     let summary = edge.await??;

@@ -6,12 +6,12 @@
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use towernav_edge::shell::node::{EdgeNode, open_session};
+use towernav_edge::node::{EdgeNode, open_session};
 use towernav_ground_station::events::NetEvent;
 use towernav_ground_station::net::{self, NetCommand};
 use towernav_ground_station::recording;
 use towernav_protocol::session::Endpoints;
-use towernav_protocol::{IdCorrection, Keys, NodeId, PoseEstimate, PoseMethod, Topic};
+use towernav_protocol::{IdCorrection, Keys, NodeId, PoseEstimate, PoseMethod, TrackReport};
 
 fn pose(uav: &NodeId, seq: u64) -> PoseEstimate {
     PoseEstimate {
@@ -31,7 +31,7 @@ fn pose(uav: &NodeId, seq: u64) -> PoseEstimate {
             [0.0, 0.0, 1.0, 0.0],
             [0.0, 0.0, 0.0, 0.0],
         ],
-        method: PoseMethod::SeedLbl,
+        method: PoseMethod::PaperLbl,
         towers_used: vec!["A1".into()],
     }
 }
@@ -112,7 +112,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
     let got = got.ok_or_else(|| anyhow::anyhow!("no pose reached the ground station"))?;
     assert_eq!(got.uav, uav);
 
-    let key = Keys::new(fleet.clone()).uav(&uav, Topic::Tracks);
+    let key = Keys::new(fleet.clone()).uav_key::<TrackReport>(&uav);
     // Put until the tracks subscription has reached us too: its declaration
     // travels apart from the poses' (a single put raced it under load).
     let mut error = None;
@@ -146,13 +146,8 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
     link.commands
         .send(NetCommand::Correct(correction.clone()))
         .map_err(|_| anyhow::anyhow!("network thread gone"))?;
-    let end = Instant::now() + Duration::from_secs(5);
-    let mut received = Vec::new();
-    while received.is_empty() && Instant::now() < end {
-        tokio::time::sleep(Duration::from_millis(20)).await;
-        received = edge.pending_corrections();
-    }
-    assert_eq!(received, vec![correction]);
+    let received = tokio::time::timeout(Duration::from_secs(5), edge.next_correction()).await?;
+    assert_eq!(received, correction);
 
     // The edge goes away: its token is deleted.
     drop(edge);
@@ -196,7 +191,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         Some(NetEvent::Alive { alive: false, .. })
     ));
     // The correction is in the recording too, on its own key.
-    let correction_key = Keys::new(fleet).uav(&uav, Topic::Correction);
+    let correction_key = Keys::new(fleet).uav_key::<IdCorrection>(&uav);
     assert!(samples.iter().any(|s| s.key == correction_key));
     Ok(())
 }

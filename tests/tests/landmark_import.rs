@@ -9,7 +9,7 @@ fn one_bad_row_refuses_the_file_and_changes_nothing() -> anyhow::Result<()> {
     let dir = tempfile::tempdir()?;
     let db_path = dir.path().join("towers.sqlite");
     let mut db = LandmarkDb::open(&db_path)?;
-    let world = World::seed_field();
+    let world = World::paper_field();
     let crew = Author {
         by: "survey crew".into(),
         at_unix_s: 1_790_000_000,

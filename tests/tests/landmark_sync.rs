@@ -4,8 +4,8 @@
 
 use std::time::Duration;
 
-use towernav_edge::shell::landmark_sync::{LandmarkSync, Source};
-use towernav_edge::shell::node::open_session;
+use towernav_edge::landmark_sync::{LandmarkSync, Source};
+use towernav_edge::node::open_session;
 use towernav_ground_station::landmark_service::serve;
 use towernav_landmark_db::{Author, LandmarkDb};
 use towernav_protocol::session::Endpoints;
@@ -14,20 +14,23 @@ use towernav_protocol::{
 };
 use towernav_sim::World;
 
-/// Polls until the replica equals the database, or fails after a few seconds.
+/// Applies changes as they arrive until the replica equals the database, or
+/// fails after a few seconds without.
 async fn converge(sync: &mut LandmarkSync, db: &LandmarkDb) -> anyhow::Result<()> {
-    for _ in 0..100 {
-        sync.poll().await?;
-        if sync.replica().records() == db.list()? && sync.replica().revision == db.revision()? {
-            return Ok(());
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
+    sync.poll().await?;
+    while sync.replica().records() != db.list()? || sync.replica().revision != db.revision()? {
+        let change = tokio::time::timeout_at(deadline, sync.next_change()).await;
+        let Ok(Some(change)) = change else {
+            anyhow::bail!(
+                "replica at r{} never matched the database at r{}",
+                sync.replica().revision,
+                db.revision()?
+            );
+        };
+        sync.apply(Some(change)).await?;
     }
-    anyhow::bail!(
-        "replica at r{} never matched the database at r{}",
-        sync.replica().revision,
-        db.revision()?
-    )
+    Ok(())
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -40,7 +43,7 @@ async fn the_edge_replica_follows_the_ground_station() -> anyhow::Result<()> {
         at_unix_s: 0,
     };
     let mut db = LandmarkDb::open(&db_path)?;
-    db.upsert_all(&World::seed_field().landmarks(), &crew)?;
+    db.upsert_all(&World::paper_field().landmarks(), &crew)?;
 
     let fleet = NodeId::new("synctest")?;
     let endpoint = towernav_tests::loopback_endpoint();
@@ -55,7 +58,7 @@ async fn the_edge_replica_follows_the_ground_station() -> anyhow::Result<()> {
         connect: vec![endpoint],
     })
     .await?;
-    towernav_edge::shell::collector::wait_for_peer(&edge, Duration::from_secs(10)).await?;
+    towernav_edge::node::wait_for_peer(&edge, Duration::from_secs(10)).await?;
 
     // Full set at start.
     let timeout = Duration::from_secs(2);
@@ -92,7 +95,9 @@ async fn the_edge_replica_follows_the_ground_station() -> anyhow::Result<()> {
     edge.put(Keys::new(fleet.clone()).landmark_changes(), encode(&bogus)?)
         .await
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    // The bogus change arrives, is seen as a gap, and the answer to the re-ask wins.
+    let bogus_arrived = tokio::time::timeout(Duration::from_secs(5), sync.next_change()).await?;
+    sync.apply(bogus_arrived).await?;
     converge(&mut sync, &db).await?;
     assert!(
         sync.replica().records().iter().any(|r| r.id == "C1"),

@@ -1,14 +1,14 @@
-//! Localization targets on the seed's field with the realistic oracle and
+//! Localization targets on the paper's field with the realistic oracle and
 //! quadrotor attitude: ours + EKF at most 2 m RMS horizontally, and at
 //! most 4 m with a fifth of the observations made false or bound to the wrong
-//! tower. The seed's method runs on the same frames for comparison.
+//! tower. The paper's method runs on the same frames for comparison.
 
-use towernav_edge::shell::loc_eval_cmd::evaluate;
+use towernav_eval::cmd::loc_eval::evaluate;
 use towernav_sim::{Scenario, World};
 
 #[test]
-fn ours_meets_the_targets_where_the_seed_does_not() {
-    let scenario = Scenario::preset(World::seed_field(), "seed-path-1", 1).expect("preset");
+fn ours_meets_the_targets_where_the_paper_does_not() {
+    let scenario = Scenario::preset(World::paper_field(), "paper-path-1", 1).expect("preset");
     let clean = evaluate(&scenario, 0.0, 1).summary();
     assert!(
         clean.filtered.count > 4000,
@@ -21,9 +21,9 @@ fn ours_meets_the_targets_where_the_seed_does_not() {
         clean.filtered.rms
     );
     assert!(
-        clean.seed.rms > 2.0 * clean.filtered.rms,
+        clean.paper.rms > 2.0 * clean.filtered.rms,
         "seed {:.2} m",
-        clean.seed.rms
+        clean.paper.rms
     );
     // Consistent covariance: mean 2-dof NEES near 2.
     assert!(

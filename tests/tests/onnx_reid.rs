@@ -5,8 +5,8 @@
 use std::path::PathBuf;
 
 use image::{Rgb, RgbImage};
-use towernav_edge::shell::onnx::{OnnxError, ReidModel, locate_runtime_from};
 use towernav_geometry::PixelBox;
+use towernav_onnx::runtime::{OnnxError, ReidModel, locate_runtime_from};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

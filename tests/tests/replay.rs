@@ -1,13 +1,13 @@
 //! Recorded inputs replay through the pure pipeline with no sockets: frames go through
 //! the wire codec to JSON and back, and the run is the same as the live one.
 
-use towernav_edge::{LandmarkMap, Pipeline, PipelineConfig};
+use towernav_core::{LandmarkMap, Pipeline, PipelineConfig};
 use towernav_protocol::{DetectionFrame, decode, encode};
 use towernav_sim::Scenario;
 
 #[test]
 fn a_recorded_flight_replays_to_the_same_fixes() -> anyhow::Result<()> {
-    let scenario = Scenario::seed(5);
+    let scenario = Scenario::paper(5);
     let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
     let config = PipelineConfig::new(scenario.camera, scenario.start_in_world());
 

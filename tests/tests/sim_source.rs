@@ -6,20 +6,22 @@ use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use towernav_edge::shell::daemon::config::{DetectorKind, EdgeConfig, Pacing, SourceKind};
-use towernav_edge::shell::daemon::run::RunSummary;
-use towernav_edge::shell::edge_cmd::run_edge;
+use towernav_edge::daemon::config::{DetectorKind, EdgeConfig, Pacing, SourceKind};
+use towernav_edge::daemon::run::RunSummary;
+use towernav_edge::demo::sim_scenario;
+use towernav_edge::edge_cmd::run_edge;
 use towernav_protocol::PoseEstimate;
 use towernav_sim::replay::{ReplaySource, ReplayWorld};
 use towernav_sim::waypoints::{FlightPlan, along_longest_line};
 use towernav_sim::world::WorldParams;
 use towernav_sim::{Scenario, World};
 
-/// Runs `config` with nobody listening; returns the summary and every published pose.
+/// Runs `config` with nobody listening; returns the summary, every published
+/// pose, and the scenario the config flies (its truth).
 async fn fly(
     mut config: EdgeConfig,
     dir: &Path,
-) -> anyhow::Result<(RunSummary, Vec<PoseEstimate>)> {
+) -> anyhow::Result<(RunSummary, Vec<PoseEstimate>, Scenario)> {
     config.zenoh.listen = vec![towernav_tests::loopback_endpoint()];
     config.zenoh.connect = vec![];
     let jsonl = dir.join("poses.jsonl");
@@ -30,15 +32,16 @@ async fn fly(
         .lines()
         .map(serde_json::from_str)
         .collect::<Result<Vec<PoseEstimate>, _>>()?;
-    Ok((summary, poses))
+    Ok((summary, poses, sim_scenario(&config.source)?))
 }
 
-/// Horizontal RMS error of `poses` against the run's truth, by frame.
-fn rms_m(summary: &RunSummary, poses: &[PoseEstimate]) -> f64 {
+/// Horizontal RMS error of `poses` against the scenario's truth, by frame.
+fn rms_m(scenario: &Scenario, poses: &[PoseEstimate]) -> f64 {
     let sq: f64 = poses
         .iter()
         .map(|p| {
-            let (e, n) = summary.record.truth_en[p.seq as usize];
+            let t = scenario.truth(p.seq).pose.position_in_world;
+            let (e, n) = (t.x, t.y);
             (p.east_m - e).powi(2) + (p.north_m - n).powi(2)
         })
         .sum();
@@ -62,17 +65,17 @@ async fn the_oracle_flies_a_random_world_along_a_plan_file() -> anyhow::Result<(
     config.source.max_frames = Some(450);
     config.source.speed = Some(0.0);
     config.detector.kind = DetectorKind::Oracle;
-    let (summary, poses) = fly(config, dir.path()).await?;
+    let (summary, poses, flown) = fly(config, dir.path()).await?;
     assert_eq!(summary.record.frames, 450);
     assert_eq!(summary.dropped, 0);
     assert!(poses.len() > 300, "{} poses", poses.len());
-    // Towers of the random world, not the seed's field, were used.
+    // Towers of the random world, not the paper's field, were used.
     assert!(
         poses
             .iter()
             .any(|p| p.towers_used.iter().any(|t| t.starts_with('L')))
     );
-    let rms = rms_m(&summary, &poses);
+    let rms = rms_m(&flown, &poses);
     assert!(rms < 5.0, "RMS {rms:.2} m over a random world");
     Ok(())
 }
@@ -90,10 +93,10 @@ async fn the_oracle_flies_over_towers_from_a_landmark_file() -> anyhow::Result<(
     config.source.speed = Some(0.0);
     config.detector.kind = DetectorKind::Oracle;
     // No flight given: a pass along the longest line.
-    let (summary, poses) = fly(config, dir.path()).await?;
+    let (summary, poses, flown) = fly(config, dir.path()).await?;
     assert_eq!(summary.record.frames, 300);
     assert!(poses.len() > 150, "{} poses", poses.len());
-    let rms = rms_m(&summary, &poses);
+    let rms = rms_m(&flown, &poses);
     assert!(rms < 5.0, "RMS {rms:.2} m over the file's towers");
     Ok(())
 }
@@ -123,19 +126,22 @@ async fn a_flight_written_without_images_replays_with_the_oracle() -> anyhow::Re
     assert_eq!(config.source.kind, SourceKind::Sim);
     assert_eq!(config.detector.kind, DetectorKind::Oracle);
     config.source.max_frames = Some(240);
-    let (summary, poses) = fly(config, dir.path()).await?;
+    let (summary, poses, flown) = fly(config, dir.path()).await?;
     assert_eq!(summary.record.frames, 240);
     // The same flight: the replay's truth is the scenario's.
-    let (e, n) = summary.record.truth_en[100];
+    let flown_truth = flown.truth(100).pose.position_in_world;
     let truth = scenario.truth(100).pose.position_in_world;
-    assert!((e - truth.x).abs() < 1e-6 && (n - truth.y).abs() < 1e-6);
-    assert!(rms_m(&summary, &poses) < 5.0);
+    assert!(
+        (flown_truth - truth).norm() < 1e-6,
+        "{flown_truth} != {truth}"
+    );
+    assert!(rms_m(&flown, &poses) < 5.0);
     Ok(())
 }
 
 #[test]
 fn a_camera_replay_processes_every_frame_unless_told_to_pace() -> anyhow::Result<()> {
-    let scenario = Scenario::seed(1);
+    let scenario = Scenario::paper(1);
     let replay = ReplaySource::Camera {
         images: "/flight/mot/straight/img1".into(),
         attitude_log: "/flight/attitude.csv".into(),

@@ -1,17 +1,17 @@
-//! Tracking and identity targets on the seed's field and paths (oracle
+//! Tracking and identity targets on the paper's field and paths (oracle
 //! detector, quadrotor attitude): every bound track-frame on its true tower
 //! (at least 99.5 %), at most one ID on two towers (through each path's
 //! turn), and ours ahead of plain SORT.
 
-use towernav_edge::LandmarkMap;
-use towernav_edge::shell::tracking_eval_cmd::write_mot;
-use towernav_edge::tracking_eval::{Method, run};
+use towernav_core::LandmarkMap;
+use towernav_eval::cmd::tracking_eval::write_mot;
+use towernav_eval::tracking_eval::{Method, run};
 use towernav_sim::{Scenario, World};
 
 #[test]
-fn ours_binds_every_frame_to_the_right_tower_on_the_seed_paths() {
-    for path in ["seed-path-1", "seed-path-2"] {
-        let scenario = Scenario::preset(World::seed_field(), path, 1).expect("preset");
+fn ours_binds_every_frame_to_the_right_tower_on_the_paper_paths() {
+    for path in ["paper-path-1", "paper-path-2"] {
+        let scenario = Scenario::preset(World::paper_field(), path, 1).expect("preset");
         let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
         let ours = run(&scenario, &map, Method::Ours, None);
         let m = ours.metrics;
@@ -34,18 +34,18 @@ fn ours_binds_every_frame_to_the_right_tower_on_the_seed_paths() {
             m.repetitive_errors
         );
         let sort = run(&scenario, &map, Method::Sort, None).metrics;
-        // Within a hair of SORT or ahead: on seed-path-2 the two tie (0.964).
+        // Within a hair of SORT or ahead: on paper-path-2 the two tie (0.964).
         assert!(
             m.idf1 >= sort.idf1 - 0.002,
             "{path}: IDF1 ours {:.3} vs SORT {:.3}",
             m.idf1,
             sort.idf1
         );
-        // On seed-path-2's turn ours switches more than SORT (5 against 2)
+        // On paper-path-2's turn ours switches more than SORT (5 against 2)
         // since the airframe lags its attitude commands: bounded at what it is,
         // to be won back, not to grow.
         let switches_allowed = match path {
-            "seed-path-2" => 5,
+            "paper-path-2" => 5,
             _ => sort.id_switches,
         };
         assert!(

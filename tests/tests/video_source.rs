@@ -5,7 +5,7 @@
 
 use std::process::Command;
 
-use towernav_edge::shell::daemon::source::{FfmpegSource, FrameSource};
+use towernav_edge::daemon::source::{FfmpegSource, FrameSource};
 
 fn ffmpeg() -> anyhow::Result<()> {
     let found = Command::new("ffmpeg")

@@ -22,7 +22,7 @@ pub fn bench_edge(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
     let config = work.join("replay.toml");
     if !config.exists() {
         run(Command::new(bin.join("towernav-sim"))
-            .args(["flight", "--preset", "seed-path-1", "--images", "--out"])
+            .args(["flight", "--preset", "paper-path-1", "--images", "--out"])
             .arg(&work))?;
     }
     let edge = |speed: &str, port: u16| {

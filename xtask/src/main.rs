@@ -20,7 +20,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Task {
-    /// Fly the simulated seed flight through the whole chain and print the report.
+    /// Fly the simulated flight of the paper through the whole chain and print the report.
     Demo(DemoArgs),
     /// Open the ground station on the demo's towers, connected to the demo's edge.
     Gs,
@@ -206,10 +206,14 @@ fn target_dir(root: &Path) -> PathBuf {
 }
 
 /// Builds these packages' release binaries; returns the folder they are in.
+/// The edge is built with its demo feature: every xtask that runs it flies the simulator.
 fn build_release(root: &Path, packages: &[&str]) -> anyhow::Result<PathBuf> {
     let mut args = vec!["build", "--release"];
     for p in packages {
         args.extend(["-p", p]);
+    }
+    if packages.contains(&"towernav-edge") {
+        args.extend(["--features", "towernav-edge/demo"]);
     }
     cargo(root, &args)?;
     Ok(target_dir(root).join("release"))
@@ -324,6 +328,12 @@ fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
             "-D",
             "warnings",
         ],
+    )?;
+    // The workspace build turns the edge's demo feature on (the tests use it):
+    // lint the onboard build, which has none of it, on its own.
+    cargo(
+        root,
+        &["clippy", "-p", "towernav-edge", "--", "-D", "warnings"],
     )?;
     run(
         Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))

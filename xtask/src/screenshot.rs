@@ -41,7 +41,7 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
             "--speed",
             "1",
             "--flight",
-            "seed-path-1",
+            "paper-path-1",
             "--listen",
             EDGE_ENDPOINT,
         ])

@@ -193,9 +193,9 @@ mod tests {
     fn the_demo_flight_and_the_presets_draw_every_stroke() {
         let before = count_warnings();
         // The demo's flight frame by frame (it had 112 refusals), the presets sampled.
-        draw_flight(&Scenario::seed(1), 1);
+        draw_flight(&Scenario::paper(1), 1);
         for (name, _) in crate::waypoints::PRESETS {
-            let scenario = Scenario::preset(crate::World::seed_field(), name, 1).expect("preset");
+            let scenario = Scenario::preset(crate::World::paper_field(), name, 1).expect("preset");
             draw_flight(&scenario, 20);
         }
         assert_eq!(count_warnings() - before, 0, "tiny-skia refused strokes");

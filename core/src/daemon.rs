@@ -1,0 +1,308 @@
+//! The daemon's logic between frames, as a state machine without I/O in the
+//! manner of quinn-proto: the shell feeds it frames (`handle_frame`), the
+//! operator's commands (`handle_command`) and its timer (`handle_timeout` at
+//! `poll_timeout`), and sends whatever `poll_output` hands back.
+//!
+//! Corrections, landmark swaps and the status heartbeat do not wait for a
+//! frame, so a stalled camera still reports itself, acknowledges every
+//! correction and takes new landmarks.
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+use towernav_geometry::{Attitude, Datum};
+use towernav_protocol::{
+    CorrectionAck, Detection, DetectionFrame, DetectionReport, EdgeState, Health, IdCorrection,
+    NodeId, PoseEstimate, PoseMethod, StatusHeartbeat, TrackReport,
+};
+
+use crate::landmarks::LandmarkMap;
+use crate::pipeline::{FrameOutput, Pipeline};
+use crate::wire::{pose_estimate, track_report};
+
+/// How often the status heartbeat goes out.
+pub const STATUS_EVERY: Duration = Duration::from_secs(1);
+/// A source silent this long is reported as failed, not merely degraded.
+pub const STALL_FAILED_AFTER: Duration = Duration::from_secs(3);
+
+/// What the daemon core is told once, at start.
+#[derive(Debug, Clone)]
+pub struct DaemonConfig {
+    pub uav: NodeId,
+    pub datum: Datum,
+    pub method: PoseMethod,
+    /// For the status: "oracle" or the model's file name.
+    pub detector: String,
+    /// Preview pictures at most this often; `None`: none.
+    pub preview_every: Option<Duration>,
+}
+
+/// One frame after the detector: its boxes, and what the source knew of it.
+#[derive(Debug, Clone)]
+pub struct DetectedFrame {
+    pub seq: u64,
+    pub time_s: f64,
+    /// When the frame entered the daemon, for frame-to-publish latency.
+    pub captured: Instant,
+    pub attitude: Attitude,
+    pub detections: Vec<Detection>,
+    /// Whether the shell holds pixels of it (a preview can be made).
+    pub has_image: bool,
+}
+
+/// What the operator asks of the daemon.
+#[derive(Debug, Clone)]
+pub enum Command {
+    Correct(IdCorrection),
+    ReplaceMap(LandmarkMap),
+}
+
+/// What the shell is to send or do.
+#[derive(Debug, Clone)]
+pub enum Output {
+    /// A fix: to Zenoh, the autopilot and the pose log.
+    Pose {
+        pose: PoseEstimate,
+        state: EdgeState,
+        attitude: Attitude,
+    },
+    Tracks(TrackReport),
+    Detections(DetectionReport),
+    /// Make and publish a preview picture of this frame.
+    Preview {
+        seq: u64,
+        time_s: f64,
+    },
+    Ack(CorrectionAck),
+    Status(StatusHeartbeat),
+}
+
+/// Frames the source dropped or failed, as totals since start.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SourceCounters {
+    pub dropped: u64,
+    pub failed: u64,
+}
+
+/// Watches the pipeline's output frame by frame from outside the core (the
+/// demo's scoring against truth); the core itself never sees truth.
+pub trait FrameObserver: Send {
+    fn observe(&mut self, seq: u64, output: &FrameOutput, map: &LandmarkMap);
+}
+
+/// The daemon between frames.
+pub struct DaemonCore {
+    config: DaemonConfig,
+    pipeline: Pipeline,
+    outputs: VecDeque<Output>,
+    last: Option<FrameOutput>,
+    state: EdgeState,
+    last_time_s: f64,
+    fixes: u64,
+    frames: u64,
+    poses: u64,
+    next_status: Instant,
+    last_status: Instant,
+    last_frame_at: Option<Instant>,
+    started: Instant,
+    frames_at_status: u64,
+    troubles_at_status: u64,
+    window_ms: Vec<f64>,
+    latency_ms: Vec<f64>,
+    last_preview: Option<Instant>,
+}
+
+impl DaemonCore {
+    pub fn new(config: DaemonConfig, pipeline: Pipeline, now: Instant) -> Self {
+        Self {
+            config,
+            pipeline,
+            outputs: VecDeque::new(),
+            last: None,
+            state: EdgeState::Initializing,
+            last_time_s: 0.0,
+            fixes: 0,
+            frames: 0,
+            poses: 0,
+            next_status: now + STATUS_EVERY,
+            last_status: now,
+            last_frame_at: None,
+            started: now,
+            frames_at_status: 0,
+            troubles_at_status: 0,
+            window_ms: Vec::new(),
+            latency_ms: Vec::new(),
+            last_preview: None,
+        }
+    }
+
+    /// Runs the pipeline on one detected frame and queues its messages.
+    pub fn handle_frame(&mut self, now: Instant, frame: DetectedFrame) {
+        let input = DetectionFrame {
+            seq: frame.seq,
+            time_s: frame.time_s,
+            imu_attitude: frame.attitude,
+            detections: frame.detections,
+        };
+        let output = self.pipeline.process(&input);
+        let map = self.pipeline.map();
+        self.fixes += u64::from(output.estimate.is_some());
+        self.state = match (&output.estimate, self.fixes) {
+            (Some(_), _) => EdgeState::Localized,
+            (None, 0) => EdgeState::Initializing,
+            (None, _) => EdgeState::NoFix,
+        };
+        if let Some(estimate) = &output.estimate {
+            let pose = pose_estimate(
+                &self.config.uav,
+                &output,
+                estimate,
+                self.config.method,
+                &self.config.datum,
+            );
+            self.poses += 1;
+            self.outputs.push_back(Output::Pose {
+                pose,
+                state: self.state,
+                attitude: frame.attitude,
+            });
+        }
+        self.outputs
+            .push_back(Output::Tracks(track_report(&self.config.uav, &output, map)));
+        self.outputs.push_back(Output::Detections(DetectionReport {
+            uav: self.config.uav.clone(),
+            time_s: frame.time_s,
+            seq: frame.seq,
+            detections: input.detections,
+        }));
+        let preview_due = self.config.preview_every.is_some_and(|every| {
+            self.last_preview
+                .is_none_or(|at| now.saturating_duration_since(at) >= every)
+        });
+        if frame.has_image && preview_due {
+            self.last_preview = Some(now);
+            self.outputs.push_back(Output::Preview {
+                seq: frame.seq,
+                time_s: frame.time_s,
+            });
+        }
+        let latency = now.saturating_duration_since(frame.captured).as_secs_f64() * 1e3;
+        self.window_ms.push(latency);
+        self.latency_ms.push(latency);
+        self.frames += 1;
+        self.last_time_s = frame.time_s;
+        self.last_frame_at = Some(now);
+        self.last = Some(output);
+    }
+
+    /// Applies a correction (and queues its acknowledgement) or a new landmark set at once.
+    pub fn handle_command(&mut self, _now: Instant, command: Command) {
+        match command {
+            Command::Correct(c) => {
+                let result = self.pipeline.pin(c.track_id, c.tower_id.as_deref());
+                tracing::info!(track = c.track_id, tower = ?c.tower_id, ok = result.is_ok(), "operator correction");
+                self.outputs.push_back(Output::Ack(CorrectionAck {
+                    uav: self.config.uav.clone(),
+                    request_id: c.request_id,
+                    accepted: result.is_ok(),
+                    reason: result.err(),
+                }));
+            }
+            Command::ReplaceMap(map) => {
+                tracing::info!(towers = map.towers.len(), "landmarks replaced");
+                self.pipeline.replace_map(map);
+            }
+        }
+    }
+
+    /// When `handle_timeout` is next due.
+    pub fn poll_timeout(&self) -> Instant {
+        self.next_status
+    }
+
+    /// Sends the status heartbeat when due; `counters` are the source's totals.
+    pub fn handle_timeout(&mut self, now: Instant, counters: SourceCounters) {
+        if now < self.next_status {
+            return;
+        }
+        let period = now
+            .saturating_duration_since(self.last_status)
+            .as_secs_f64();
+        let frames = self.frames - self.frames_at_status;
+        let troubles = counters.dropped + counters.failed;
+        let silent_for = now.saturating_duration_since(self.last_frame_at.unwrap_or(self.started));
+        let health = if silent_for >= STALL_FAILED_AFTER {
+            Health::Failed
+        } else if troubles > self.troubles_at_status || frames == 0 {
+            Health::Degraded
+        } else {
+            Health::Ok
+        };
+        let (p50, p99) = percentiles(&mut self.window_ms);
+        let origin = self.config.datum.origin;
+        self.outputs.push_back(Output::Status(StatusHeartbeat {
+            uav: self.config.uav.clone(),
+            time_s: self.last_time_s,
+            state: self.state,
+            frames_processed: self.frames,
+            frame_rate_hz: frames as f64 / period.max(1e-9),
+            landmarks_loaded: self.pipeline.map().towers.len() as u32,
+            datum_lat_deg: origin.lat_deg,
+            datum_lon_deg: origin.lon_deg,
+            datum_alt_m: origin.height_m,
+            health,
+            frames_dropped: counters.dropped,
+            frames_failed: counters.failed,
+            latency_p50_ms: p50,
+            latency_p99_ms: p99,
+            detector: self.config.detector.clone(),
+        }));
+        self.window_ms.clear();
+        self.frames_at_status = self.frames;
+        self.troubles_at_status = troubles;
+        self.last_status = now;
+        // A late timer does not fire a burst: the next beat is a period from now.
+        self.next_status = (self.next_status + STATUS_EVERY).max(now + STATUS_EVERY / 2);
+    }
+
+    /// The next message to send, oldest first.
+    pub fn poll_output(&mut self) -> Option<Output> {
+        self.outputs.pop_front()
+    }
+
+    pub fn pipeline(&self) -> &Pipeline {
+        &self.pipeline
+    }
+
+    /// The pipeline's output for the last frame, for observers outside the core.
+    pub fn last_output(&self) -> Option<&FrameOutput> {
+        self.last.as_ref()
+    }
+
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    pub fn poses(&self) -> u64 {
+        self.poses
+    }
+
+    /// Frame-to-publish latency of every processed frame, milliseconds.
+    pub fn latency_ms(&self) -> &[f64] {
+        &self.latency_ms
+    }
+}
+
+/// p50 and p99 of `values` (sorted in place); zeros when empty.
+pub fn percentiles(values: &mut [f64]) -> (f64, f64) {
+    if values.is_empty() {
+        return (0.0, 0.0);
+    }
+    values.sort_by(f64::total_cmp);
+    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+    (at(0.5), at(0.99))
+}
+
+#[cfg(test)]
+#[path = "daemon_tests.rs"]
+mod tests;

@@ -1,0 +1,220 @@
+//! The daemon core on virtual time: a clock made of `Instant`s the test moves.
+
+use std::time::{Duration, Instant};
+
+use nalgebra::Point3;
+use towernav_geometry::{Attitude, PinholeCamera};
+use towernav_protocol::{Health, IdCorrection, NodeId, PoseMethod};
+
+use super::*;
+use crate::fixtures::{map, tower};
+use crate::pipeline::{Pipeline, PipelineConfig};
+
+fn core(start: Instant, preview_every: Option<Duration>) -> DaemonCore {
+    let towers = map(vec![
+        tower("T1", 100.0, 0.0, 40.0),
+        tower("T2", 300.0, 0.0, 40.0),
+    ]);
+    let datum = *towers.datum();
+    let pipeline = Pipeline::new(
+        PipelineConfig::new(PinholeCamera::default_hd(), Point3::origin()),
+        towers,
+    );
+    DaemonCore::new(
+        DaemonConfig {
+            uav: NodeId::new("uav1").expect("an id"),
+            datum,
+            method: PoseMethod::RaysEkf,
+            detector: "oracle".into(),
+            preview_every,
+        },
+        pipeline,
+        start,
+    )
+}
+
+fn frame(seq: u64, at: Instant, start: Instant) -> DetectedFrame {
+    DetectedFrame {
+        seq,
+        time_s: (at - start).as_secs_f64(),
+        captured: at,
+        attitude: Attitude::default(),
+        detections: Vec::new(),
+        has_image: true,
+    }
+}
+
+fn drain(core: &mut DaemonCore) -> Vec<Output> {
+    std::iter::from_fn(|| core.poll_output()).collect()
+}
+
+/// Drives `core` as the shell does, from `from` to `to`: frames every
+/// `frame_every` (none when `None`), and the timer whenever it is due.
+fn run(
+    core: &mut DaemonCore,
+    start: Instant,
+    from: Duration,
+    to: Duration,
+    frame_every: Option<Duration>,
+    seq: &mut u64,
+) -> Vec<Output> {
+    let mut out = Vec::new();
+    let mut now = start + from;
+    let mut next_frame = frame_every.map(|_| now);
+    while now < start + to {
+        let timer = core.poll_timeout();
+        now = match next_frame {
+            Some(f) if f <= timer => f,
+            _ => timer,
+        };
+        if now >= start + to {
+            break;
+        }
+        if next_frame == Some(now) {
+            core.handle_frame(now, frame(*seq, now, start));
+            *seq += 1;
+            next_frame = frame_every.map(|every| now + every);
+        }
+        core.handle_timeout(now, SourceCounters::default());
+        out.extend(drain(core));
+    }
+    out
+}
+
+fn statuses(outputs: &[Output]) -> Vec<&towernav_protocol::StatusHeartbeat> {
+    outputs
+        .iter()
+        .filter_map(|o| match o {
+            Output::Status(s) => Some(s),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_ten_second_camera_stall_still_beats_acks_and_takes_landmarks() {
+    let start = Instant::now();
+    let mut core = core(start, None);
+    let mut seq = 0;
+    let flying = run(
+        &mut core,
+        start,
+        Duration::ZERO,
+        Duration::from_millis(2050),
+        Some(Duration::from_millis(100)),
+        &mut seq,
+    );
+    assert_eq!(statuses(&flying).len(), 2);
+    assert!(statuses(&flying).iter().all(|s| s.health == Health::Ok));
+    let frames = core.frames();
+
+    // The camera stops; the operator corrects twice and the landmarks change.
+    let stalled_at = start + Duration::from_millis(2050);
+    core.handle_command(
+        stalled_at + Duration::from_secs(3),
+        Command::Correct(IdCorrection {
+            uav: NodeId::new("uav1").expect("an id"),
+            request_id: 7,
+            track_id: 99,
+            tower_id: Some("T1".into()),
+            issued_by: "operator".into(),
+        }),
+    );
+    let acks: Vec<_> = drain(&mut core)
+        .into_iter()
+        .filter_map(|o| match o {
+            Output::Ack(a) => Some(a),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(acks.len(), 1, "the ack goes out at once, with no frame");
+    assert_eq!(acks[0].request_id, 7);
+    assert!(!acks[0].accepted, "no track 99 exists: {:?}", acks[0]);
+    core.handle_command(
+        stalled_at + Duration::from_secs(4),
+        Command::ReplaceMap(map(vec![tower("T3", 200.0, 50.0, 35.0)])),
+    );
+    assert_eq!(core.pipeline().map().towers.len(), 1);
+
+    let stall = run(
+        &mut core,
+        start,
+        Duration::from_millis(2050),
+        Duration::from_millis(12_050),
+        None,
+        &mut seq,
+    );
+    let beats = statuses(&stall);
+    assert_eq!(beats.len(), 10, "one status a second through the stall");
+    assert_eq!(core.frames(), frames);
+    assert!(beats.iter().all(|s| s.frames_processed == frames));
+    assert!(beats.iter().all(|s| s.health != Health::Ok), "{beats:?}");
+    assert_eq!(beats.last().map(|s| s.health), Some(Health::Failed));
+    assert_eq!(beats.last().map(|s| s.landmarks_loaded), Some(1));
+}
+
+#[test]
+fn every_frame_sends_tracks_and_detections_and_previews_are_paced() {
+    let start = Instant::now();
+    let mut core = core(start, Some(Duration::from_millis(500)));
+    let mut seq = 0;
+    let out = run(
+        &mut core,
+        start,
+        Duration::ZERO,
+        Duration::from_millis(1990),
+        Some(Duration::from_millis(100)),
+        &mut seq,
+    );
+    let count = |f: fn(&Output) -> bool| out.iter().filter(|o| f(o)).count();
+    assert_eq!(count(|o| matches!(o, Output::Tracks(_))), 20);
+    assert_eq!(count(|o| matches!(o, Output::Detections(_))), 20);
+    assert_eq!(count(|o| matches!(o, Output::Preview { .. })), 4);
+    assert_eq!(core.latency_ms().len(), 20);
+}
+
+#[test]
+fn a_late_timer_sends_one_status_not_a_burst() {
+    let start = Instant::now();
+    let mut core = core(start, None);
+    core.handle_timeout(start + Duration::from_secs(5), SourceCounters::default());
+    assert_eq!(statuses(&drain(&mut core)).len(), 1);
+    assert!(core.poll_timeout() > start + Duration::from_secs(5));
+}
+
+#[test]
+fn drops_since_the_last_status_degrade_health() {
+    let start = Instant::now();
+    let mut core = core(start, None);
+    let mut seq = 0;
+    run(
+        &mut core,
+        start,
+        Duration::ZERO,
+        Duration::from_millis(1050),
+        Some(Duration::from_millis(100)),
+        &mut seq,
+    );
+    let now = start + Duration::from_millis(1100);
+    core.handle_frame(now, frame(seq, now, start));
+    let at = core.poll_timeout();
+    core.handle_timeout(
+        at,
+        SourceCounters {
+            dropped: 3,
+            failed: 0,
+        },
+    );
+    let out = drain(&mut core);
+    let beats = statuses(&out);
+    assert_eq!(beats.len(), 1);
+    assert_eq!(beats[0].health, Health::Degraded);
+    assert_eq!(beats[0].frames_dropped, 3);
+}
+
+#[test]
+fn percentiles_of_nothing_are_zero() {
+    assert_eq!(percentiles(&mut []), (0.0, 0.0));
+    let mut v = [3.0, 1.0, 2.0];
+    assert_eq!(percentiles(&mut v), (2.0, 3.0));
+}

@@ -1,0 +1,30 @@
+//! The edge's pure core, in the manner of quinn-proto and str0m: everything
+//! between a frame's pixels and the messages that leave the UAV, with time
+//! passed in and no I/O. Detector pre- and post-processing (`detector`), the
+//! trackers (`tracker`), tower identity (`identity`), the localizers
+//! (`localizer`) and the filter (`filter`), chained per frame by `pipeline`;
+//! the landmark replica (`replica`), the messages the daemon sends (`wire`,
+//! `autopilot`), and the daemon's logic between frames (`daemon`).
+//!
+//! Its `Cargo.toml` has no tokio, zenoh, ort, simulator, SQLite or plotting
+//! dependency: the shells in `towernav-onnx` and `towernav-edge` do the I/O.
+
+pub mod assignment;
+pub mod autopilot;
+pub mod daemon;
+pub mod detector;
+pub mod filter;
+pub mod flight_record;
+pub mod identity;
+pub mod landmarks;
+pub mod localizer;
+pub mod pipeline;
+pub mod replica;
+pub mod tracker;
+pub mod wire;
+
+#[cfg(test)]
+mod fixtures;
+
+pub use landmarks::{LandmarkMap, MapTower};
+pub use pipeline::{BoundTrack, FrameOutput, Pipeline, PipelineConfig};

@@ -1,0 +1,116 @@
+//! What a box says about the pose, in pixels: the predicted rows of a tower's
+//! top and foot and the column of its axis, with their Jacobians with respect to
+//! (east, north, up, yaw), and the spread of each measured edge.
+//!
+//! Roll and pitch come from the IMU and are held fixed; the camera mount is
+//! folded in with them, so the same code serves any attitude.
+
+use nalgebra::{Point3, RowVector4};
+use towernav_geometry::{FrameCamera, Intrinsics, Projected};
+
+use super::{LocalizerParams, Observation, touches_edge};
+
+/// One scalar measurement: its value, prediction, Jacobian row and spread.
+#[derive(Debug, Clone, Copy)]
+pub struct Residual {
+    pub r: f64,
+    pub jacobian: RowVector4<f64>,
+    pub sigma: f64,
+}
+
+/// Which of a box's three numbers can be trusted: an edge that touches the
+/// image border is where the image ends, not where the tower does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Usable {
+    pub centre: bool,
+    pub top: bool,
+    pub bottom: bool,
+}
+
+impl Usable {
+    pub fn of(o: &Observation<'_>, k: &Intrinsics) -> Self {
+        const MARGIN: f64 = super::EDGE_MARGIN_PX;
+        let b = &o.bbox;
+        if !touches_edge(b, k) {
+            return Self {
+                centre: true,
+                top: true,
+                bottom: true,
+            };
+        }
+        Self {
+            centre: b.left > MARGIN && b.right < f64::from(k.width) - MARGIN,
+            top: b.top > MARGIN,
+            bottom: b.bottom < f64::from(k.height) - MARGIN,
+        }
+    }
+
+    pub fn count(self) -> usize {
+        usize::from(self.centre) + usize::from(self.top) + usize::from(self.bottom)
+    }
+}
+
+/// Spread of one box edge: grows for small boxes and low scores.
+pub fn edge_sigma(o: &Observation<'_>, params: &LocalizerParams) -> f64 {
+    let h = o.bbox.height().max(1.0);
+    let score = if o.score.is_finite() {
+        o.score.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    params.edge_sigma_px * (1.0 + params.small_box_px / h) * (1.0 + 0.5 * (1.0 - score))
+}
+
+/// The usable residuals of one observation at state (position, yaw); `out` is cleared first.
+/// Returns `false` when the tower is behind the camera at this state.
+pub fn residuals(
+    o: &Observation<'_>,
+    usable: Usable,
+    camera: &FrameCamera,
+    position: &Point3<f64>,
+    yaw: f64,
+    params: &LocalizerParams,
+    out: &mut Vec<Residual>,
+) -> bool {
+    out.clear();
+    let (Some(top), Some(foot)) = (
+        camera.project(&o.tower.top_in_world(), position, yaw),
+        camera.project(&o.tower.foot_in_world, position, yaw),
+    ) else {
+        return false;
+    };
+    let k = &camera.k;
+    let sigma_e = edge_sigma(o, params);
+    let (sh, sv) = (o.tower.sigma_horizontal_m, o.tower.sigma_vertical_m);
+    // A survey error moves the whole tower: sideways by sh, in range by sh, up by sv.
+    let survey_v = |p: &Projected| {
+        let range_share = (p.v - k.cy) / p.depth;
+        (k.fy * sv / p.depth).powi(2) + (range_share * sh).powi(2)
+    };
+    if usable.centre {
+        let predicted = 0.5 * (top.u + foot.u);
+        let width_term = params.centre_width_share * o.bbox.width();
+        let sigma2 =
+            0.5 * sigma_e * sigma_e + width_term * width_term + (k.fx * sh / foot.depth).powi(2);
+        out.push(Residual {
+            r: o.bbox.center_x() - predicted,
+            jacobian: 0.5 * (top.du + foot.du),
+            sigma: sigma2.sqrt(),
+        });
+    }
+    if usable.top {
+        out.push(Residual {
+            r: o.bbox.top - top.v,
+            jacobian: top.dv,
+            sigma: (sigma_e * sigma_e + survey_v(&top)).sqrt(),
+        });
+    }
+    if usable.bottom {
+        out.push(Residual {
+            r: o.bbox.bottom - foot.v,
+            jacobian: foot.dv,
+            sigma: (sigma_e * sigma_e + survey_v(&foot)).sqrt(),
+        });
+    }
+    true
+}

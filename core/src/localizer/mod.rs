@@ -1,0 +1,120 @@
+//! Localization by landmarks: boxes of bound towers in, a position with yaw and
+//! covariance out, one frame at a time. Two methods on the same inputs:
+//!
+//! - `paper`: the paper's level-camera similar triangles, plain mean over towers;
+//! - `rays`: ours: attitude-compensated rays and a robust weighted nonlinear
+//!   least squares over (east, north, up, yaw) with the IMU yaw as a prior.
+//!
+//! The filter that fuses fixes over time lives in `crate::filter`.
+
+mod measurement;
+mod paper;
+mod robust;
+mod single;
+
+use nalgebra::{Matrix4, Point3};
+use towernav_geometry::{Intrinsics, PixelBox};
+
+use crate::landmarks::MapTower;
+
+pub use paper::{paper_lbl, paper_range};
+pub use robust::{RobustFix, robust_lbl};
+pub use single::single_tower_position;
+
+/// Which per-frame estimator the pipeline runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// The paper's method, kept as the baseline.
+    Paper,
+    /// Ours: attitude-compensated rays, robust multi-tower least squares.
+    #[default]
+    Rays,
+}
+
+/// The names a user may give a method: `paper` (also `seed`, its older name) and `rays`.
+pub const METHOD_NAMES: [&str; 3] = ["rays", "paper", "seed"];
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Rays => "rays",
+        }
+    }
+
+    /// The method a user named; `None` for a name that is none of `METHOD_NAMES`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "paper" | "seed" => Some(Self::Paper),
+            "rays" => Some(Self::Rays),
+            _ => None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalizerParams {
+    /// Spread of one box edge for a large box, pixels.
+    pub edge_sigma_px: f64,
+    /// Edges of small boxes are noisier: sigma = edge_sigma_px * (1 + small_box_px / h).
+    pub small_box_px: f64,
+    /// Boxes shorter than this are not trusted by ours at all.
+    pub min_box_height_px: f64,
+    /// The paper trusted only large boxes; its method keeps its own threshold.
+    pub paper_min_box_height_px: f64,
+    /// Spread of the IMU heading, radians: the prior on yaw.
+    pub yaw_sigma: f64,
+    /// The box centre is not exactly the axis (cross-arms seen obliquely): extra
+    /// spread of the centre column as a share of the box width.
+    pub centre_width_share: f64,
+    /// Scale of the Cauchy loss on a normalised residual.
+    pub robust_k: f64,
+    /// A fix whose horizontal sigma exceeds this is not reported.
+    pub max_horizontal_sigma_m: f64,
+}
+
+impl Default for LocalizerParams {
+    fn default() -> Self {
+        Self {
+            edge_sigma_px: 1.0,
+            small_box_px: 40.0,
+            min_box_height_px: 8.0,
+            paper_min_box_height_px: 20.0,
+            yaw_sigma: 0.3f64.to_radians(),
+            centre_width_share: 0.04,
+            robust_k: 2.5,
+            max_horizontal_sigma_m: 50.0,
+        }
+    }
+}
+
+/// One bound, measured tower.
+#[derive(Debug, Clone, Copy)]
+pub struct Observation<'a> {
+    pub tower: &'a MapTower,
+    pub bbox: PixelBox,
+    /// Detector confidence, 0..1.
+    pub score: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fix {
+    pub position_in_world: Point3<f64>,
+    pub yaw: f64,
+    /// (east, north, up, yaw).
+    pub covariance: Matrix4<f64>,
+    pub towers_used: Vec<String>,
+}
+
+/// An edge this close to the image border is taken to be the border: a
+/// detector's edge noise pulls a cut box's edges a few pixels inside.
+pub const EDGE_MARGIN_PX: f64 = 4.0;
+
+/// Whether the image edge cuts the box, which makes its height a lie.
+pub fn touches_edge(b: &PixelBox, k: &Intrinsics) -> bool {
+    const MARGIN: f64 = EDGE_MARGIN_PX;
+    b.left <= MARGIN
+        || b.top <= MARGIN
+        || b.right >= f64::from(k.width) - MARGIN
+        || b.bottom >= f64::from(k.height) - MARGIN
+}

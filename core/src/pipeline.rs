@@ -1,0 +1,312 @@
+//! One frame in, one pose and a set of bound tracks out: tracker -> identity -> localizer.
+
+use nalgebra::Point3;
+use towernav_geometry::{PinholeCamera, PixelBox, Pose};
+use towernav_protocol::{DetectionFrame, TowerType};
+
+use crate::filter::{Estimate, FilterParams, FixVerdict, PoseFilter};
+use crate::identity::{Identity, IdentityParams, View};
+use crate::landmarks::LandmarkMap;
+use crate::localizer::{Fix, LocalizerParams, Method, Observation, paper_lbl, robust_lbl};
+use crate::tracker::{CameraMotion, SortParams, SortTracker, TrackOutput, Tracker, TrackerInput};
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct PipelineConfig {
+    pub camera: PinholeCamera,
+    /// Roughly known take-off position: it seeds identities before the first fix.
+    pub takeoff_in_world: Point3<f64>,
+    pub sort: SortParams,
+    pub identity: IdentityParams,
+    pub localizer: LocalizerParams,
+    /// The per-frame estimator: ours by default, the paper's as a baseline.
+    pub method: Method,
+    /// The EKF over fixes; `None` publishes raw per-frame fixes.
+    pub filter: Option<FilterParams>,
+    /// Also run the paper's method on the same observations, for side-by-side scoring.
+    pub compare_paper: bool,
+    /// Only towers within this distance of the pose guess are candidates for a new track.
+    pub landmark_radius_m: f64,
+}
+
+impl PipelineConfig {
+    pub fn new(camera: PinholeCamera, takeoff_in_world: Point3<f64>) -> Self {
+        Self {
+            camera,
+            takeoff_in_world,
+            sort: SortParams::default(),
+            identity: IdentityParams::default(),
+            localizer: LocalizerParams::default(),
+            method: Method::default(),
+            filter: Some(FilterParams::default()),
+            compare_paper: false,
+            landmark_radius_m: 1500.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundTrack {
+    pub track_id: u64,
+    pub bbox: PixelBox,
+    pub tower_type: TowerType,
+    /// Index into the landmark map.
+    pub tower: Option<usize>,
+    pub pinned: bool,
+    /// How sure the binding is (see [`Identity::confidence`]).
+    pub confidence: Option<f64>,
+}
+
+/// A bound box as the localizer gets it; `process_tampered` may alter these.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundBox {
+    pub bbox: PixelBox,
+    /// Index into the landmark map.
+    pub tower: usize,
+    pub score: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameOutput {
+    pub seq: u64,
+    pub time_s: f64,
+    /// This frame's own fix, by the configured method.
+    pub fix: Option<Fix>,
+    /// What is published: the filter's estimate, or the raw fix with no filter.
+    pub estimate: Option<Estimate>,
+    pub verdict: FixVerdict,
+    /// The paper's fix on the same observations, when `compare_paper` is set.
+    pub paper_fix: Option<Fix>,
+    pub tracks: Vec<BoundTrack>,
+}
+
+pub struct Pipeline {
+    config: PipelineConfig,
+    map: LandmarkMap,
+    tracker: SortTracker,
+    identity: Identity,
+    filter: Option<PoseFilter>,
+    /// Last frame's IMU attitude, for camera-motion compensation.
+    prev_attitude: Option<towernav_geometry::Attitude>,
+    /// The newest position estimate: the pose guess when the filter has none
+    /// (no filter, or lost after an outage). Better than the take-off point.
+    last_known: Option<Point3<f64>>,
+}
+
+impl Pipeline {
+    pub fn new(config: PipelineConfig, map: LandmarkMap) -> Self {
+        Self {
+            tracker: SortTracker::new(config.sort),
+            identity: Identity::new(config.identity),
+            filter: config.filter.map(PoseFilter::new),
+            config,
+            map,
+            prev_attitude: None,
+            last_known: None,
+        }
+    }
+
+    pub fn map(&self) -> &LandmarkMap {
+        &self.map
+    }
+
+    pub fn config(&self) -> &PipelineConfig {
+        &self.config
+    }
+
+    /// Swaps in a new landmark map (the replica changed); bindings follow their towers by id.
+    pub fn replace_map(&mut self, map: LandmarkMap) {
+        let old = std::mem::replace(&mut self.map, map);
+        let new = &self.map;
+        self.identity.remap(|i| new.index_of(&old.towers[i].id));
+    }
+
+    /// An operator's correction: bind `track_id` to the tower `tower_id` (or to none).
+    pub fn pin(&mut self, track_id: u64, tower_id: Option<&str>) -> Result<(), String> {
+        if !self.tracker.live_ids().contains(&track_id) {
+            return Err(format!("track {track_id} is not live"));
+        }
+        let tower = match tower_id {
+            Some(id) => Some(
+                self.map
+                    .index_of(id)
+                    .ok_or_else(|| format!("tower {id:?} is not in the landmark map"))?,
+            ),
+            None => None,
+        };
+        self.identity.pin(track_id, tower);
+        Ok(())
+    }
+
+    fn predicted_position(&self, time_s: f64) -> Option<Point3<f64>> {
+        self.filter
+            .as_ref()
+            .and_then(|f| f.predicted_position(time_s))
+            .or(self.last_known)
+    }
+
+    pub fn process(&mut self, frame: &DetectionFrame) -> FrameOutput {
+        self.process_tampered(frame, |_| {})
+    }
+
+    /// `process`, with a hook between identity and localization that may alter
+    /// the bound boxes: evaluations use it to inject wrong towers and false boxes.
+    pub fn process_tampered(
+        &mut self,
+        frame: &DetectionFrame,
+        tamper: impl FnOnce(&mut Vec<BoundBox>),
+    ) -> FrameOutput {
+        let predicted = self.predicted_position(frame.time_s);
+        let (tracks, bindings) = self.track_and_bind(frame, predicted);
+        let mut bound: Vec<BoundBox> = tracks
+            .iter()
+            .zip(&bindings)
+            .filter_map(|(t, b)| {
+                b.map(|tower| BoundBox {
+                    bbox: t.bbox,
+                    tower,
+                    score: t.score,
+                })
+            })
+            .collect();
+        tamper(&mut bound);
+        let (fix, paper_fix) = self.localize(frame, &bound, predicted);
+        let (estimate, verdict) = self.filter_step(frame, fix.as_ref());
+        if let Some(e) = &estimate {
+            self.last_known = Some(e.position_in_world);
+        }
+        let tracks = tracks
+            .into_iter()
+            .zip(bindings)
+            .map(|(t, tower)| BoundTrack {
+                pinned: self.identity.is_pinned(t.track_id),
+                confidence: tower.and_then(|_| self.identity.confidence(t.track_id)),
+                track_id: t.track_id,
+                bbox: t.bbox,
+                tower_type: t.tower_type,
+                tower,
+            })
+            .collect();
+        FrameOutput {
+            seq: frame.seq,
+            time_s: frame.time_s,
+            fix,
+            estimate,
+            verdict,
+            paper_fix,
+            tracks,
+        }
+    }
+
+    /// The tracker's step, then each track bound to a tower (or not) about
+    /// the predicted position, or the take-off before the first fix.
+    fn track_and_bind(
+        &mut self,
+        frame: &DetectionFrame,
+        predicted: Option<Point3<f64>>,
+    ) -> (Vec<TrackOutput>, Vec<Option<usize>>) {
+        let motion = self
+            .prev_attitude
+            .map(|before| CameraMotion::between(&self.config.camera, &before, &frame.imu_attitude));
+        self.prev_attitude = Some(frame.imu_attitude);
+        let tracks = self.tracker.step(&TrackerInput {
+            time_s: frame.time_s,
+            detections: &frame.detections,
+            motion: motion.as_ref(),
+            features: None,
+        });
+        let live = self.tracker.live_ids();
+        let guess = Pose {
+            position_in_world: predicted.unwrap_or(self.config.takeoff_in_world),
+            attitude: frame.imu_attitude,
+        };
+        let trusted = self
+            .filter
+            .as_ref()
+            .is_some_and(|f| f.tracking(frame.time_s, 0.5));
+        let view = View {
+            guess: &guess,
+            trusted,
+            camera: &self.config.camera,
+            map: &self.map,
+        };
+        let bindings = self.identity.update(&tracks, &live, view, || {
+            self.map
+                .nearby(&guess.position_in_world, self.config.landmark_radius_m)
+        });
+        (tracks, bindings)
+    }
+
+    /// The configured method's fix from the bound boxes, and the paper's
+    /// alongside when it is compared.
+    fn localize(
+        &self,
+        frame: &DetectionFrame,
+        bound: &[BoundBox],
+        predicted: Option<Point3<f64>>,
+    ) -> (Option<Fix>, Option<Fix>) {
+        let observations: Vec<Observation<'_>> = bound
+            .iter()
+            .filter_map(|b| {
+                Some(Observation {
+                    tower: self.map.towers.get(b.tower)?,
+                    bbox: b.bbox,
+                    score: b.score,
+                })
+            })
+            .collect();
+        let params = &self.config.localizer;
+        let paper = || {
+            paper_lbl(
+                &observations,
+                &self.config.camera.intrinsics,
+                frame.imu_attitude.yaw,
+                params,
+            )
+        };
+        let fix = match self.config.method {
+            Method::Paper => paper(),
+            Method::Rays => robust_lbl(
+                &observations,
+                &self.config.camera,
+                &frame.imu_attitude,
+                predicted,
+                params,
+            )
+            .map(|r| r.fix),
+        };
+        let paper_fix = if self.config.compare_paper {
+            paper()
+        } else {
+            None
+        };
+        (fix, paper_fix)
+    }
+
+    /// The filter's step on the fix; without a filter, the fix as it is.
+    fn filter_step(
+        &mut self,
+        frame: &DetectionFrame,
+        fix: Option<&Fix>,
+    ) -> (Option<Estimate>, FixVerdict) {
+        let params = &self.config.localizer;
+        let imu_yaw_var = params.yaw_sigma * params.yaw_sigma;
+        match &mut self.filter {
+            Some(filter) => filter.step(frame.time_s, fix, frame.imu_attitude.yaw, imu_yaw_var),
+            None => (
+                fix.map(|f| Estimate {
+                    position_in_world: f.position_in_world,
+                    velocity_in_world: nalgebra::Vector3::zeros(),
+                    yaw: f.yaw,
+                    covariance: f.covariance,
+                    updated: true,
+                    coast_s: 0.0,
+                }),
+                if fix.is_some() {
+                    FixVerdict::Accepted
+                } else {
+                    FixVerdict::NoFix
+                },
+            ),
+        }
+    }
+}

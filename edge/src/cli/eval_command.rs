@@ -1,0 +1,96 @@
+//! The eval commands (demo build): the paper's tables reproduced on the
+//! simulator, and the detector's on rendered or real images.
+
+use std::path::PathBuf;
+
+use clap::Subcommand;
+use towernav_eval::cmd::detector_eval::DetectorEvalOptions;
+
+use crate::cli::detector_args::DetectorArgs;
+
+#[derive(Subcommand)]
+pub enum EvalCommand {
+    /// The paper's Table 2: SORT, ByteTrack-style and ours on the paper's paths and
+    /// random fields (oracle detector), with MOT-challenge result files.
+    #[command(name = "eval-tracking")]
+    Tracking {
+        /// Folder for the MOT-challenge files.
+        #[arg(long, default_value = "target/tracking-eval")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// An ONNX re-identification model ([N, 3, H, W] crops in, [N, D] out) for
+        /// DeepSORT's appearance; default: the Rust crop descriptor.
+        #[arg(long)]
+        reid: Option<PathBuf>,
+    },
+    /// The paper's Table 1 for a YOLO model: precision, recall, mAP50, mAP50-95 per
+    /// class, recall by box height, and latency, on held-out simulated worlds.
+    #[command(name = "eval-detector")]
+    Detector {
+        #[command(flatten)]
+        detector: DetectorArgs,
+        /// Held-out worlds to render (drawn from --seed; training used seed 0).
+        #[arg(long, default_value_t = 10)]
+        worlds: u64,
+        #[arg(long, default_value_t = 30)]
+        frames_per_world: u64,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Types each box may be scored under, best first: 1 is what the
+        /// pipeline gets; 4 scores mAP as Ultralytics validates (`multi_label`).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=4))]
+        types_per_box: u8,
+        /// Folder for detector-eval.json.
+        #[arg(long, default_value = "target/detector-eval")]
+        out: PathBuf,
+    },
+    /// Reproduce the paper's localization analysis (seed vs ours, tables and PNG plots).
+    #[command(name = "eval-localization")]
+    Localization {
+        /// Folder for the plots.
+        #[arg(long, default_value = "target/loc-eval")]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+}
+
+impl EvalCommand {
+    pub fn run(&self) -> anyhow::Result<()> {
+        match self {
+            Self::Localization { out, seed } => towernav_eval::cmd::loc_eval::write_all(out, *seed),
+            Self::Tracking { out, seed, reid } => {
+                towernav_eval::cmd::tracking_eval::write_all(out, *seed, reid.as_deref())
+            }
+            Self::Detector {
+                detector,
+                worlds,
+                frames_per_world,
+                seed,
+                types_per_box,
+                out,
+            } => {
+                let options = DetectorEvalOptions {
+                    worlds: *worlds,
+                    frames_per_world: *frames_per_world,
+                    seed: *seed,
+                    recall_score: detector.min_score,
+                };
+                // Average precision needs the whole ranking: keep candidates down to 0.001,
+                // as Ultralytics' validation does; P and R are read at --min-score.
+                let mut detector_options = detector.options();
+                detector_options.post.min_score = 0.001;
+                detector_options.post.types_per_box = usize::from(*types_per_box);
+                let section = detector.section();
+                towernav_eval::cmd::detector_eval::write_all(
+                    &section.model,
+                    section.type_model(),
+                    &detector_options,
+                    &options,
+                    out,
+                )
+            }
+        }
+    }
+}

@@ -1,0 +1,7 @@
+//! The binary's flags.
+
+#[cfg(feature = "demo")]
+pub mod detector_args;
+#[cfg(feature = "demo")]
+pub mod eval_command;
+pub mod run_args;

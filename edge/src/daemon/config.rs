@@ -1,0 +1,679 @@
+//! The daemon's configuration: a TOML file (every field optional, defaults
+//! below), overridden by command-line flags, validated before anything starts.
+//! `towernav-edge print-config` writes the defaults as a starting file.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("config {path}: {reason}")]
+    File { path: PathBuf, reason: String },
+    #[error("config field `{field}`: {reason}")]
+    Invalid { field: &'static str, reason: String },
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EdgeConfig {
+    pub fleet: String,
+    pub uav: String,
+    pub zenoh: ZenohSection,
+    pub source: SourceSection,
+    pub camera: CameraSection,
+    pub attitude: AttitudeSection,
+    pub detector: DetectorSection,
+    pub landmarks: LandmarksSection,
+    pub pipeline: PipelineSection,
+    pub mavlink: MavlinkSection,
+    pub output: OutputSection,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ZenohSection {
+    /// Endpoints to listen on (peers and ground stations connect here).
+    pub listen: Vec<String>,
+    /// Endpoints to connect to: other peers, or a router (`tcp/<router>:7447`).
+    pub connect: Vec<String>,
+    /// `peer` (the default: edges and ground station find each other directly) or
+    /// `client` (behind a router: everything goes through the `connect` router).
+    pub mode: ZenohMode,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum ZenohMode {
+    #[default]
+    Peer,
+    Client,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceKind {
+    /// The embedded simulator (rendered frames, or oracle boxes with `detector.kind = "oracle"`).
+    Sim,
+    /// A folder of PNG/JPEG images in name order.
+    Images,
+    /// A video file, through ffmpeg.
+    Video,
+    /// An `rtsp://` stream, through ffmpeg.
+    Rtsp,
+    /// A V4L2 camera such as `/dev/video0`, through ffmpeg.
+    V4l2,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SourceSection {
+    pub kind: SourceKind,
+    /// Folder, file, URL or device, for every kind but `sim`.
+    pub path: Option<String>,
+    /// Frame rate of an image folder or video file (their clock).
+    pub fps: f64,
+    /// Frames are scaled to this size (the camera model's).
+    pub width: u32,
+    pub height: u32,
+    /// The simulator's flight: a preset (paper-path-1, paper-path-2, straight,
+    /// out-and-back, lawnmower) or a waypoint plan file (`.toml`, in the
+    /// world's ENU metres). None: the skeleton's level flight over the paper's
+    /// field, a pass along the longest line over any other world.
+    pub flight: Option<String>,
+    /// The simulator's world from a landmark CSV or database (positions,
+    /// heights, types; lines by `line_name`); none: the paper's field.
+    pub world: Option<PathBuf>,
+    /// The simulator's world drawn at random from this seed.
+    pub random_world: Option<u64>,
+    pub seed: u64,
+    /// Stop after this many frames.
+    pub max_frames: Option<u64>,
+    /// Playback speed relative to real time, for recorded sources; when
+    /// behind, the oldest frame is dropped. 0: every frame, as fast as the
+    /// pipeline goes. Unset: 4 for the simulator, 0 for an image folder or a
+    /// video file. Live cameras (`rtsp`, `v4l2`) pace themselves.
+    pub speed: Option<f64>,
+    /// Frames waiting for the pipeline; when full, the oldest is dropped.
+    pub queue: usize,
+}
+
+/// How frames are fed to the pipeline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// Every frame, as fast as the pipeline goes; none is dropped.
+    EveryFrame,
+    /// At this multiple of the source's clock; the oldest frame is dropped when behind.
+    Speed(f64),
+    /// A live camera: frames arrive at their own pace; the oldest is dropped when behind.
+    Live,
+}
+
+/// The simulator's default playback speed: fast enough to watch a whole flight
+/// in a quarter of its time.
+pub const SIM_DEFAULT_SPEED: f64 = 4.0;
+
+impl SourceSection {
+    /// What `speed` means for this kind of source, its default applied.
+    pub fn pacing(&self) -> Pacing {
+        let speed = match (self.kind, self.speed) {
+            (SourceKind::Rtsp | SourceKind::V4l2, _) => return Pacing::Live,
+            (_, Some(speed)) => speed,
+            (SourceKind::Sim, None) => SIM_DEFAULT_SPEED,
+            (SourceKind::Images | SourceKind::Video, None) => 0.0,
+        };
+        if speed > 0.0 {
+            Pacing::Speed(speed)
+        } else {
+            Pacing::EveryFrame
+        }
+    }
+}
+
+/// The camera model for real sources (the simulator brings its own).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraSection {
+    /// Horizontal field of view, degrees (square pixels, centred principal point).
+    pub hfov_deg: f64,
+}
+
+impl Default for CameraSection {
+    fn default() -> Self {
+        Self { hfov_deg: 70.0 }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AttitudeKind {
+    /// From the frame source (the simulator's IMU).
+    Source,
+    /// A CSV log: time_s,roll_deg,pitch_deg,heading_deg.
+    Csv,
+    /// The autopilot's MAVLink ATTITUDE messages.
+    Mavlink,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AttitudeSection {
+    pub kind: AttitudeKind,
+    /// The CSV log, for `csv`.
+    pub path: Option<PathBuf>,
+    /// Where to listen for ATTITUDE, for `mavlink` (e.g. `udpin:127.0.0.1:14551`).
+    pub address: String,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DetectorKind {
+    Yolo,
+    /// The simulator's truth with noise; needs `source.kind = "sim"`.
+    Oracle,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DetectorSection {
+    pub kind: DetectorKind,
+    /// The shipped default is the INT8 export (`training/quantize.py`): a
+    /// fifth faster on the CPU for 0.01 less mAP50; `models/towers.onnx` is
+    /// the float one.
+    pub model: PathBuf,
+    /// Name each box's type with the classifier at `type_model`, which reads
+    /// the full-resolution crop (off: the detector's own types, which it
+    /// confuses far more often at 0.4x).
+    pub classify_types: bool,
+    pub type_model: PathBuf,
+    pub threads: usize,
+    pub cuda: bool,
+    pub min_score: f32,
+    /// With the classifier: how much the detector's own type scores count
+    /// against the crop's reading, 0 to 1 (0: the classifier alone).
+    pub detector_type_weight: f32,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct LandmarksSection {
+    /// Towers from a .csv or a landmark database; none: the simulator's world.
+    pub file: Option<PathBuf>,
+    /// Keep a replica of the ground station's landmarks here and follow its changes.
+    pub replica: Option<PathBuf>,
+}
+
+impl DetectorSection {
+    /// The type classifier's model, when it is on.
+    pub fn type_model(&self) -> Option<&std::path::Path> {
+        self.classify_types.then_some(self.type_model.as_path())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PipelineSection {
+    /// `rays` (ours) or `paper` (the paper's method, the baseline; `seed` is its older name).
+    pub method: String,
+    /// Fuse fixes with the EKF.
+    pub filter: bool,
+    /// Take-off point [lat_deg, lon_deg, alt_m]: the mission datum and the
+    /// filter's first guess. Needed for real sources; the simulator knows its own.
+    pub takeoff: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MavlinkMessages {
+    GpsInput,
+    Odometry,
+    Both,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MavlinkSection {
+    pub enabled: bool,
+    /// `udpout:<host>:<port>`, or `serial:<device>:<baud>`.
+    pub address: String,
+    pub messages: MavlinkMessages,
+    pub rate_hz: f64,
+    pub system_id: u8,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSection {
+    /// One JSON line per published estimate.
+    pub jsonl: Option<PathBuf>,
+    /// Annotated frames (boxes, track and tower ids, pose) as JPEGs in this
+    /// folder; the demo build only, as the drawing links the plotting library.
+    pub annotated: Option<PathBuf>,
+    /// JPEG previews per second on Zenoh; 0: none.
+    pub preview_hz: f64,
+}
+
+impl Default for EdgeConfig {
+    fn default() -> Self {
+        Self {
+            fleet: "demo".into(),
+            uav: "uav1".into(),
+            zenoh: ZenohSection::default(),
+            source: SourceSection::default(),
+            camera: CameraSection::default(),
+            attitude: AttitudeSection::default(),
+            detector: DetectorSection::default(),
+            landmarks: LandmarksSection::default(),
+            pipeline: PipelineSection::default(),
+            mavlink: MavlinkSection::default(),
+            output: OutputSection::default(),
+        }
+    }
+}
+
+impl Default for ZenohSection {
+    fn default() -> Self {
+        Self {
+            listen: vec!["tcp/127.0.0.1:7447".into()],
+            connect: vec![],
+            mode: ZenohMode::Peer,
+        }
+    }
+}
+
+impl Default for SourceSection {
+    fn default() -> Self {
+        Self {
+            kind: SourceKind::Sim,
+            path: None,
+            fps: 30.0,
+            width: 1280,
+            height: 720,
+            flight: None,
+            world: None,
+            random_world: None,
+            seed: 1,
+            max_frames: None,
+            speed: None,
+            queue: 2,
+        }
+    }
+}
+
+impl Default for AttitudeSection {
+    fn default() -> Self {
+        Self {
+            kind: AttitudeKind::Source,
+            path: None,
+            address: "udpin:127.0.0.1:14551".into(),
+        }
+    }
+}
+
+impl Default for DetectorSection {
+    fn default() -> Self {
+        Self {
+            kind: DetectorKind::Yolo,
+            model: "models/towers-int8.onnx".into(),
+            classify_types: true,
+            type_model: "models/tower-types-int8.onnx".into(),
+            threads: 2,
+            cuda: false,
+            min_score: 0.25,
+            detector_type_weight: towernav_core::detector::postprocess::DETECTOR_TYPE_WEIGHT,
+        }
+    }
+}
+
+impl Default for PipelineSection {
+    fn default() -> Self {
+        Self {
+            method: "rays".into(),
+            filter: true,
+            takeoff: None,
+        }
+    }
+}
+
+impl Default for MavlinkSection {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            address: "udpout:127.0.0.1:14550".into(),
+            messages: MavlinkMessages::GpsInput,
+            rate_hz: 5.0,
+            system_id: 1,
+        }
+    }
+}
+
+impl Default for OutputSection {
+    fn default() -> Self {
+        Self {
+            jsonl: None,
+            annotated: None,
+            preview_hz: 2.0,
+        }
+    }
+}
+
+impl EdgeConfig {
+    /// Read a TOML file; unknown keys and wrong types are errors with their place.
+    pub fn read(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::File {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Self::parse(&text).map_err(|reason| ConfigError::File {
+            path: path.to_path_buf(),
+            reason,
+        })
+    }
+
+    pub fn parse(text: &str) -> Result<Self, String> {
+        toml::from_str(text).map_err(|e| e.to_string())
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Everything that would fail later, refused now with the field's name.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_link()?;
+        self.validate_source()?;
+        self.validate_detector()?;
+        self.validate_pose_inputs()?;
+        self.validate_outputs()
+    }
+
+    /// Ids and Zenoh endpoints.
+    fn validate_link(&self) -> Result<(), ConfigError> {
+        let invalid =
+            |field: &'static str, reason: String| Err(ConfigError::Invalid { field, reason });
+        for (field, id) in [("fleet", &self.fleet), ("uav", &self.uav)] {
+            if let Err(e) = towernav_protocol::NodeId::new(id.clone()) {
+                return invalid(field, e.to_string());
+            }
+        }
+        for endpoint in self.zenoh.listen.iter().chain(&self.zenoh.connect) {
+            if !endpoint.starts_with("tcp/") {
+                return invalid(
+                    "zenoh.listen/connect",
+                    format!("{endpoint:?}: towernav speaks tcp/<host>:<port> only"),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The frame source.
+    fn validate_source(&self) -> Result<(), ConfigError> {
+        let invalid =
+            |field: &'static str, reason: String| Err(ConfigError::Invalid { field, reason });
+        let s = &self.source;
+        if s.kind != SourceKind::Sim && s.path.is_none() {
+            return invalid("source.path", format!("a {:?} source needs a path", s.kind));
+        }
+        if !(s.fps > 0.0 && s.fps <= 1000.0) {
+            return invalid("source.fps", format!("{} is not in (0, 1000]", s.fps));
+        }
+        if s.width < 32 || s.height < 32 || s.width > 8192 || s.height > 8192 {
+            return invalid(
+                "source.width/height",
+                format!("{}x{} is not a camera size", s.width, s.height),
+            );
+        }
+        if let Some(speed) = s.speed {
+            if speed.is_nan() || speed < 0.0 {
+                return invalid("source.speed", format!("{speed} must be 0 or more"));
+            }
+            if matches!(s.kind, SourceKind::Rtsp | SourceKind::V4l2) {
+                return invalid(
+                    "source.speed",
+                    format!("a live {:?} camera paces itself; remove the speed", s.kind),
+                );
+            }
+        }
+        if s.kind != SourceKind::Sim && (s.world.is_some() || s.random_world.is_some()) {
+            return invalid(
+                "source.world",
+                "a world is for the simulator (source.kind = \"sim\")".into(),
+            );
+        }
+        if s.world.is_some() && s.random_world.is_some() {
+            return invalid(
+                "source.world",
+                "give a world file or a random world's seed, not both".into(),
+            );
+        }
+        if s.queue == 0 || s.queue > 64 {
+            return invalid("source.queue", format!("{} is not in 1..=64", s.queue));
+        }
+        Ok(())
+    }
+
+    /// The detector, and the outputs only some builds have.
+    fn validate_detector(&self) -> Result<(), ConfigError> {
+        let invalid =
+            |field: &'static str, reason: String| Err(ConfigError::Invalid { field, reason });
+        let s = &self.source;
+        if self.detector.kind == DetectorKind::Oracle && s.kind != SourceKind::Sim {
+            return invalid(
+                "detector.kind",
+                "the oracle needs the simulator's truth (source.kind = \"sim\")".into(),
+            );
+        }
+        if cfg!(not(feature = "demo")) && self.output.annotated.is_some() {
+            return invalid(
+                "output.annotated",
+                "this onboard build draws no annotated frames (build towernav-edge with `--features demo`)"
+                    .into(),
+            );
+        }
+        if self.detector.threads == 0 || self.detector.threads > 64 {
+            return invalid(
+                "detector.threads",
+                format!("{} is not in 1..=64", self.detector.threads),
+            );
+        }
+        if !(0.0..1.0).contains(&self.detector.min_score) {
+            return invalid(
+                "detector.min_score",
+                format!("{} is not in [0, 1)", self.detector.min_score),
+            );
+        }
+        if !(0.0..=1.0).contains(&self.detector.detector_type_weight) {
+            return invalid(
+                "detector.detector_type_weight",
+                format!("{} is not in [0, 1]", self.detector.detector_type_weight),
+            );
+        }
+        Ok(())
+    }
+
+    /// Attitude, camera and the pipeline's start.
+    fn validate_pose_inputs(&self) -> Result<(), ConfigError> {
+        let invalid =
+            |field: &'static str, reason: String| Err(ConfigError::Invalid { field, reason });
+        let s = &self.source;
+        match self.attitude.kind {
+            AttitudeKind::Source if s.kind != SourceKind::Sim => {
+                return invalid(
+                    "attitude.kind",
+                    "only the simulator stamps frames with attitude; use \"csv\" or \"mavlink\""
+                        .into(),
+                );
+            }
+            AttitudeKind::Csv if self.attitude.path.is_none() => {
+                return invalid("attitude.path", "a csv attitude input needs a path".into());
+            }
+            _ => {}
+        }
+        if !(self.camera.hfov_deg > 5.0 && self.camera.hfov_deg < 170.0) {
+            return invalid(
+                "camera.hfov_deg",
+                format!("{} is not in (5, 170)", self.camera.hfov_deg),
+            );
+        }
+        match self.pipeline.takeoff {
+            None if s.kind != SourceKind::Sim => {
+                return invalid(
+                    "pipeline.takeoff",
+                    "a real source needs the take-off point [lat_deg, lon_deg, alt_m]".into(),
+                );
+            }
+            Some([lat, lon, alt]) => {
+                if let Err(e) = towernav_geometry::Geodetic::new(lat, lon, alt) {
+                    return invalid("pipeline.takeoff", e.to_string());
+                }
+            }
+            None => {}
+        }
+        if towernav_core::localizer::Method::from_name(&self.pipeline.method).is_none() {
+            return invalid(
+                "pipeline.method",
+                format!(
+                    "{:?} is not \"rays\" or \"paper\" (also \"seed\")",
+                    self.pipeline.method
+                ),
+            );
+        }
+        Ok(())
+    }
+
+    /// MAVLink and the preview.
+    fn validate_outputs(&self) -> Result<(), ConfigError> {
+        let invalid =
+            |field: &'static str, reason: String| Err(ConfigError::Invalid { field, reason });
+        if self.mavlink.enabled {
+            if !(self.mavlink.rate_hz > 0.0 && self.mavlink.rate_hz <= 50.0) {
+                return invalid(
+                    "mavlink.rate_hz",
+                    format!("{} is not in (0, 50]", self.mavlink.rate_hz),
+                );
+            }
+            if !(self.mavlink.address.starts_with("udpout:")
+                || self.mavlink.address.starts_with("serial:"))
+            {
+                return invalid(
+                    "mavlink.address",
+                    format!(
+                        "{:?}: use udpout:<host>:<port> or serial:<device>:<baud>",
+                        self.mavlink.address
+                    ),
+                );
+            }
+        }
+        if !(self.output.preview_hz >= 0.0 && self.output.preview_hz <= 30.0) {
+            return invalid(
+                "output.preview_hz",
+                format!("{} is not in [0, 30]", self.output.preview_hz),
+            );
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_validate_and_round_trip_through_toml() {
+        let config = EdgeConfig::default();
+        config.validate().expect("defaults are valid");
+        assert_eq!(
+            EdgeConfig::parse(&config.to_toml()).expect("parses"),
+            config
+        );
+    }
+
+    #[test]
+    fn a_partial_file_keeps_the_other_defaults() {
+        let config = EdgeConfig::parse(
+            "uav = \"scout7\"\n[source]\nkind = \"images\"\npath = \"/data/frames\"\n[attitude]\nkind = \"csv\"\npath = \"att.csv\"\n[pipeline]\ntakeoff = [30.5, 114.3, 20.0]\n",
+        )
+        .expect("parses");
+        assert_eq!(config.uav, "scout7");
+        assert_eq!(config.source.fps, 30.0);
+        config.validate().expect("valid");
+    }
+
+    #[test]
+    fn recorded_frames_are_all_processed_unless_pacing_is_asked_for() {
+        let source = |text: &str| EdgeConfig::parse(text).expect("parses").source;
+        let images = "[source]\nkind = \"images\"\npath = \"f\"\n";
+        assert_eq!(source(images).pacing(), Pacing::EveryFrame);
+        let video = "[source]\nkind = \"video\"\npath = \"f.mp4\"\n";
+        assert_eq!(source(video).pacing(), Pacing::EveryFrame);
+        assert_eq!(
+            source(&format!("{images}speed = 1\n")).pacing(),
+            Pacing::Speed(1.0)
+        );
+        assert_eq!(
+            source("").pacing(),
+            Pacing::Speed(SIM_DEFAULT_SPEED),
+            "the simulator keeps its default"
+        );
+        assert_eq!(source("[source]\nspeed = 0\n").pacing(), Pacing::EveryFrame);
+        let rtsp = "[source]\nkind = \"rtsp\"\npath = \"rtsp://cam\"\n";
+        assert_eq!(source(rtsp).pacing(), Pacing::Live);
+    }
+
+    #[test]
+    fn mistakes_are_named() {
+        let err = EdgeConfig::parse("[source]\nfsp = 30\n").expect_err("typo");
+        assert!(err.contains("fsp"), "{err}");
+        let err = EdgeConfig::parse("[source]\nfps = \"fast\"\n").expect_err("type");
+        assert!(err.contains("fps"), "{err}");
+        let cases: [(&str, &str); 11] = [
+            (
+                "[source]\nkind = \"v4l2\"\npath = \"/dev/video0\"\nspeed = 2\n",
+                "source.speed",
+            ),
+            (
+                "[source]\nkind = \"images\"\npath = \"x\"\nrandom_world = 3\n",
+                "source.world",
+            ),
+            (
+                "[source]\nworld = \"t.csv\"\nrandom_world = 3\n",
+                "source.world",
+            ),
+            ("[source]\nkind = \"video\"\n", "source.path"),
+            (
+                "[detector]\ndetector_type_weight = 1.5\n",
+                "detector.detector_type_weight",
+            ),
+            ("[source]\nfps = 0\n", "source.fps"),
+            (
+                "[source]\nkind = \"images\"\npath = \"x\"\n[detector]\nkind = \"oracle\"\n",
+                "detector.kind",
+            ),
+            (
+                "[source]\nkind = \"images\"\npath = \"x\"\n",
+                "attitude.kind",
+            ),
+            (
+                "[source]\nkind = \"images\"\npath = \"x\"\n[attitude]\nkind = \"csv\"\npath = \"a.csv\"\n",
+                "pipeline.takeoff",
+            ),
+            (
+                "[zenoh]\nlisten = [\"udp/0.0.0.0:7447\"]\n",
+                "zenoh.listen/connect",
+            ),
+            (
+                "[mavlink]\nenabled = true\naddress = \"udpin:0.0.0.0:14550\"\n",
+                "mavlink.address",
+            ),
+        ];
+        for (text, field) in cases {
+            let err = EdgeConfig::parse(text)
+                .expect("parses")
+                .validate()
+                .expect_err(field)
+                .to_string();
+            assert!(err.contains(field), "{text}: {err}");
+        }
+    }
+}

@@ -1,0 +1,496 @@
+//! The imperative shell around `DaemonCore`: source thread -> drop-oldest
+//! queue -> detector thread -> this loop. The loop waits on whichever comes
+//! first (a detected frame, an operator's correction, a landmark change, the
+//! core's timer), hands it to the core, and sends what the core returns:
+//! Zenoh, MAVLink, the JSONL log, previews and annotated frames.
+
+use std::io::Write;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use image::RgbImage;
+use image::codecs::jpeg::JpegEncoder;
+use towernav_core::LandmarkMap;
+use towernav_core::daemon::{Command, DaemonCore, FrameObserver, Output, SourceCounters};
+use towernav_core::flight_record::FlightRecord;
+use towernav_geometry::Datum;
+use towernav_protocol::{IdCorrection, PoseEstimate, Preview, TrackReport, TruthPose};
+use zenoh::sample::Sample;
+
+use super::config::Pacing;
+use super::mavlink_out::MavlinkOut;
+use super::queue::DropOldest;
+use super::source::{CapturedFrame, FrameSource};
+use super::worker::{Detected, Worker, WorkerTotals};
+use crate::ShellError;
+use crate::landmark_sync::LandmarkSync;
+use crate::node::EdgeNode;
+
+/// How the shell around the core behaves.
+pub struct RunOptions {
+    /// Every frame, at a multiple of the source's clock, or a live camera's pace.
+    pub pacing: Pacing,
+    pub queue: usize,
+    /// The detector, for the report: "oracle" or the model's file name.
+    pub detector_name: String,
+    pub jsonl: Option<std::path::PathBuf>,
+    pub mavlink: Option<MavlinkOut>,
+    pub annotate_dir: Option<std::path::PathBuf>,
+}
+
+/// Everything one run of the daemon is made of.
+pub struct Daemon<'a> {
+    pub node: &'a EdgeNode,
+    pub source: Box<dyn FrameSource>,
+    pub worker: Worker,
+    pub core: DaemonCore,
+    pub datum: Datum,
+    pub options: RunOptions,
+    pub sync: Option<&'a mut LandmarkSync>,
+    /// Watches each frame's pipeline output from outside (the demo's scoring).
+    pub observer: Option<&'a mut (dyn FrameObserver + 'static)>,
+    pub stop: Arc<AtomicBool>,
+}
+
+/// What happened, for the report and the closing log.
+pub struct RunSummary {
+    pub record: FlightRecord,
+    /// Frame-to-publish latency of every processed frame, milliseconds.
+    pub latency_ms: Vec<f64>,
+    pub dropped: u64,
+    pub failed: u64,
+    pub mavlink_sent: u64,
+}
+
+/// What the loop woke up for.
+enum Event {
+    Frame(Option<Detected>),
+    Correction(IdCorrection),
+    Landmarks(Option<Sample>),
+    Timer,
+}
+
+/// A frame the core has just processed, with what the loop kept of it.
+struct Processed {
+    seq: u64,
+    time_s: f64,
+    image: Option<RgbImage>,
+    truth: Option<nalgebra::Point3<f64>>,
+}
+
+/// The loop's state beside the core: sinks and what it has counted.
+struct Sinks<'a> {
+    node: &'a EdgeNode,
+    datum: Datum,
+    jsonl: Option<std::io::BufWriter<std::fs::File>>,
+    mavlink: Option<MavlinkOut>,
+    annotate_dir: Option<std::path::PathBuf>,
+    record: FlightRecord,
+    pacing: Pacing,
+    warned_drops: bool,
+}
+
+impl Daemon<'_> {
+    /// Runs until the source ends, or `stop` is set and the queued frames are done.
+    pub async fn run(self, mut on_frame: impl FnMut(u64)) -> Result<RunSummary, ShellError> {
+        let Daemon {
+            node,
+            source,
+            worker,
+            mut core,
+            datum,
+            options,
+            mut sync,
+            mut observer,
+            stop,
+        } = self;
+        tracing::info!(source = %source.describe(), detector = %options.detector_name, "edge daemon starting");
+        let queue = Arc::new(DropOldest::<CapturedFrame>::new(options.queue));
+        let failed_source = Arc::new(AtomicU64::new(0));
+        let source_thread = spawn_source(
+            source,
+            queue.clone(),
+            stop.clone(),
+            failed_source.clone(),
+            options.pacing,
+        )?;
+        let (frames_tx, mut frames_rx) = tokio::sync::mpsc::channel::<Detected>(4);
+        let worker_queue = queue.clone();
+        let worker_task = tokio::task::spawn_blocking(move || worker.run(worker_queue, frames_tx));
+
+        let mut sinks = Sinks {
+            node,
+            datum,
+            jsonl: open_jsonl(options.jsonl.as_deref())?,
+            mavlink: options.mavlink,
+            annotate_dir: options.annotate_dir,
+            record: FlightRecord::default(),
+            pacing: options.pacing,
+            warned_drops: false,
+        };
+        let counters = || SourceCounters {
+            dropped: queue.dropped(),
+            failed: failed_source.load(Ordering::Relaxed),
+        };
+        let wall = Instant::now();
+        loop {
+            let deadline = tokio::time::Instant::from_std(core.poll_timeout());
+            let event = tokio::select! {
+                detected = frames_rx.recv() => Event::Frame(detected),
+                correction = node.next_correction() => Event::Correction(correction),
+                change = next_change(sync.as_deref()) => Event::Landmarks(change),
+                () = tokio::time::sleep_until(deadline) => Event::Timer,
+            };
+            match event {
+                Event::Frame(None) => break,
+                Event::Frame(Some(detected)) => {
+                    let seq = detected.frame.seq;
+                    let (frame, image, truth) =
+                        (detected.frame, detected.image, detected.truth_in_world);
+                    let time_s = frame.time_s;
+                    // The pipeline is CPU work: off the runtime's threads, so the
+                    // sockets of this and any other task stay served meanwhile.
+                    let (back, seconds) = tokio::task::spawn_blocking(move || {
+                        let t0 = Instant::now();
+                        core.handle_frame(t0, frame);
+                        (core, t0.elapsed().as_secs_f64())
+                    })
+                    .await
+                    .map_err(|e| ShellError::Daemon(format!("the pipeline failed: {e}")))?;
+                    core = back;
+                    sinks.record.core_seconds += seconds;
+                    let processed = Processed {
+                        seq,
+                        time_s,
+                        image,
+                        truth,
+                    };
+                    sinks
+                        .frame(&mut core, processed, observer.as_deref_mut())
+                        .await?;
+                    on_frame(seq);
+                }
+                Event::Correction(c) => core.handle_command(Instant::now(), Command::Correct(c)),
+                Event::Landmarks(change) => {
+                    if let Some(sync) = sync.as_deref_mut()
+                        && sync.apply(change).await?
+                    {
+                        let replica = sync.replica();
+                        tracing::info!(
+                            revision = replica.revision,
+                            towers = replica.len(),
+                            "landmarks updated from the ground station"
+                        );
+                        let map = LandmarkMap::from_records(&replica.records(), &datum);
+                        core.handle_command(Instant::now(), Command::ReplaceMap(map));
+                    }
+                }
+                Event::Timer => {
+                    if stop.load(Ordering::Relaxed) {
+                        // A stalled source may never return: finish what is queued and go.
+                        queue.close();
+                    }
+                }
+            }
+            core.handle_timeout(Instant::now(), counters());
+            sinks.flush(&mut core, None).await?;
+        }
+        sinks.record.wall_seconds = wall.elapsed().as_secs_f64();
+        stop.store(true, Ordering::Relaxed);
+        queue.close();
+        let totals: WorkerTotals = worker_task
+            .await
+            .map_err(|e| ShellError::Daemon(format!("the worker thread failed: {e}")))?;
+        if source_thread.is_finished() {
+            let _ = source_thread.join();
+        }
+        if let Some(log) = sinks.jsonl.as_mut() {
+            let _ = log.flush();
+        }
+        let mut record = sinks.record;
+        record.detect_seconds = totals.detect_seconds;
+        record.detector_errors = totals.failed;
+        record.detector =
+            (options.detector_name != "oracle").then(|| options.detector_name.clone());
+        let summary = RunSummary {
+            failed: totals.failed + failed_source.load(Ordering::Relaxed),
+            dropped: queue.dropped(),
+            mavlink_sent: sinks.mavlink.as_ref().map_or(0, |m| m.sent),
+            record,
+            latency_ms: core.latency_ms().to_vec(),
+        };
+        log_stop(&summary, options.pacing);
+        Ok(summary)
+    }
+}
+
+impl Sinks<'_> {
+    /// One frame the core has processed: to the observer, and out.
+    async fn frame(
+        &mut self,
+        core: &mut DaemonCore,
+        processed: Processed,
+        observer: Option<&mut (dyn FrameObserver + 'static)>,
+    ) -> Result<(), ShellError> {
+        let Processed {
+            seq,
+            time_s,
+            image,
+            truth,
+        } = processed;
+        self.record.frames += 1;
+        if let (Some(observer), Some(output)) = (observer, core.last_output()) {
+            observer.observe(seq, output, core.pipeline().map());
+        }
+        self.flush(core, image.as_ref()).await?;
+        if let Some(truth) = truth {
+            let g = self.datum.to_geodetic(&truth);
+            self.node
+                .publish_truth(&TruthPose {
+                    uav: self.node.uav().clone(),
+                    time_s,
+                    seq,
+                    lat_deg: g.lat_deg,
+                    lon_deg: g.lon_deg,
+                    alt_m: g.height_m,
+                })
+                .await?;
+        }
+        Ok(())
+    }
+
+    /// Sends everything the core has queued; `image` is the frame just processed.
+    async fn flush(
+        &mut self,
+        core: &mut DaemonCore,
+        image: Option<&RgbImage>,
+    ) -> Result<(), ShellError> {
+        let mut pose: Option<PoseEstimate> = None;
+        while let Some(output) = core.poll_output() {
+            match output {
+                Output::Pose {
+                    pose: p,
+                    state,
+                    attitude,
+                } => {
+                    self.node.publish_pose(&p).await?;
+                    self.record.poses_published += 1;
+                    if let Some(out) = self.mavlink.as_mut()
+                        && let Err(e) = out.offer(&p, state, &attitude)
+                    {
+                        tracing::warn!(error = %e, "MAVLink send failed");
+                    }
+                    self.log_pose(&p);
+                    pose = Some(p);
+                }
+                Output::Tracks(tracks) => {
+                    self.node.publish_tracks(&tracks).await?;
+                    if let (Some(dir), Some(image)) = (&self.annotate_dir, image) {
+                        write_annotated(dir, image, &tracks, pose.as_ref());
+                    }
+                }
+                Output::Detections(report) => self.node.publish_detections(&report).await?,
+                Output::Preview { seq, time_s } => {
+                    if let Some(jpeg) = image.and_then(preview_jpeg) {
+                        let (width, height) = image.map_or((0, 0), RgbImage::dimensions);
+                        self.node
+                            .publish_preview(&Preview {
+                                uav: self.node.uav().clone(),
+                                time_s,
+                                seq,
+                                frame_width: width,
+                                frame_height: height,
+                                jpeg,
+                            })
+                            .await?;
+                    }
+                }
+                Output::Ack(ack) => self.node.acknowledge(&ack).await?,
+                Output::Status(status) => {
+                    self.node.publish_status(&status).await?;
+                    if !self.warned_drops
+                        && let Some(share) =
+                            dropped_share(status.frames_dropped, self.record.frames)
+                    {
+                        self.warned_drops = true;
+                        tracing::warn!(
+                            dropped = status.frames_dropped,
+                            processed = self.record.frames,
+                            "{}",
+                            drop_advice(share, self.pacing)
+                        );
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn log_pose(&mut self, pose: &PoseEstimate) {
+        if let Some(log) = self.jsonl.as_mut()
+            && let Ok(line) = serde_json::to_string(pose)
+            && writeln!(log, "{line}").is_err()
+        {
+            tracing::warn!("the JSONL log could not be written; stopping it");
+            self.jsonl = None;
+        }
+    }
+}
+
+/// The next landmark change, or never when there is no sync.
+async fn next_change(sync: Option<&LandmarkSync>) -> Option<Sample> {
+    match sync {
+        Some(sync) => match sync.next_change().await {
+            Some(sample) => Some(sample),
+            None => std::future::pending().await,
+        },
+        None => std::future::pending().await,
+    }
+}
+
+/// The source's own thread: reads frames, paces them if asked, and queues them.
+fn spawn_source(
+    mut source: Box<dyn FrameSource>,
+    queue: Arc<DropOldest<CapturedFrame>>,
+    stop: Arc<AtomicBool>,
+    failed: Arc<AtomicU64>,
+    pacing: Pacing,
+) -> Result<std::thread::JoinHandle<()>, ShellError> {
+    let speed = match pacing {
+        Pacing::Speed(speed) => Some(speed),
+        Pacing::EveryFrame | Pacing::Live => None,
+    };
+    let paced = pacing != Pacing::EveryFrame;
+    std::thread::Builder::new()
+        .name("frame-source".into())
+        .spawn(move || {
+            let start = Instant::now();
+            while !stop.load(Ordering::Relaxed) {
+                match source.next_frame() {
+                    Some(Ok(mut frame)) => {
+                        if let Some(speed) = speed {
+                            let due = Duration::from_secs_f64(frame.time_s / speed);
+                            if let Some(wait) = due.checked_sub(start.elapsed()) {
+                                std::thread::sleep(wait);
+                            }
+                        }
+                        frame.captured = Instant::now();
+                        // Real time drops the oldest; a replay as fast as it goes keeps every frame.
+                        if paced {
+                            queue.push(frame);
+                        } else {
+                            queue.push_blocking(frame);
+                        }
+                    }
+                    Some(Err(e)) => {
+                        tracing::warn!(error = %e, "frame skipped");
+                        failed.fetch_add(1, Ordering::Relaxed);
+                    }
+                    None => break,
+                }
+            }
+            queue.close();
+        })
+        .map_err(|e| ShellError::Daemon(format!("starting the source thread: {e}")))
+}
+
+fn open_jsonl(
+    path: Option<&std::path::Path>,
+) -> Result<Option<std::io::BufWriter<std::fs::File>>, ShellError> {
+    path.map(|path| {
+        std::fs::File::create(path)
+            .map(std::io::BufWriter::new)
+            .map_err(|e| {
+                ShellError::Daemon(format!("creating the JSONL log {}: {e}", path.display()))
+            })
+    })
+    .transpose()
+}
+
+fn log_stop(summary: &RunSummary, pacing: Pacing) {
+    match dropped_share(summary.dropped, summary.record.frames) {
+        Some(share) => tracing::warn!(
+            frames = summary.record.frames,
+            dropped = summary.dropped,
+            failed = summary.failed,
+            "edge daemon stopped; {}",
+            drop_advice(share, pacing)
+        ),
+        None => tracing::info!(
+            frames = summary.record.frames,
+            dropped = summary.dropped,
+            failed = summary.failed,
+            "edge daemon stopped"
+        ),
+    }
+}
+
+/// The frame with its tracks and pose drawn, as a JPEG in `dir` (demo build).
+#[cfg(feature = "demo")]
+fn write_annotated(
+    dir: &std::path::Path,
+    image: &RgbImage,
+    tracks: &TrackReport,
+    pose: Option<&PoseEstimate>,
+) {
+    let path = dir.join(format!("frame{:06}.jpg", tracks.seq));
+    let mut canvas = image.clone();
+    towernav_eval::annotate::annotate(&mut canvas, tracks, pose);
+    if let Err(e) = canvas.save(&path) {
+        tracing::warn!(path = %path.display(), error = %e, "annotated frame not written");
+    }
+}
+
+/// The onboard build draws nothing: the config refuses `output.annotated` there.
+#[cfg(not(feature = "demo"))]
+fn write_annotated(_: &std::path::Path, _: &RgbImage, _: &TrackReport, _: Option<&PoseEstimate>) {}
+
+/// A half-size JPEG of the frame for the operator's camera view.
+fn preview_jpeg(image: &RgbImage) -> Option<Vec<u8>> {
+    let small = image::imageops::thumbnail(image, image.width() / 2, image.height() / 2);
+    let mut jpeg = Vec::new();
+    JpegEncoder::new_with_quality(&mut jpeg, 70)
+        .encode_image(&small)
+        .map_err(|e| tracing::warn!(error = %e, "preview not encoded"))
+        .ok()?;
+    Some(jpeg)
+}
+
+/// Share of the source's frames that the queue dropped, when over 1 %: enough
+/// that a replay is no longer the flight it recorded.
+pub fn dropped_share(dropped: u64, processed: u64) -> Option<f64> {
+    let seen = dropped + processed;
+    let share = dropped as f64 / seen.max(1) as f64;
+    (share > 0.01).then_some(share)
+}
+
+/// What to say about a share of dropped frames, and what to do about it.
+pub fn drop_advice(share: f64, pacing: Pacing) -> String {
+    let cause = match pacing {
+        Pacing::Speed(speed) => format!(
+            "the pipeline is slower than the source played at {speed}x; `--speed 0` processes every frame"
+        ),
+        Pacing::Live => "the pipeline is slower than the camera's frame rate".into(),
+        Pacing::EveryFrame => "frames were dropped although every frame was asked for".into(),
+    };
+    format!("{:.1} % of frames were dropped: {cause}", share * 100.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dropping_over_one_percent_is_told_with_its_cure() {
+        assert_eq!(dropped_share(1, 199), None, "0.5 %");
+        assert_eq!(dropped_share(0, 0), None);
+        let share = dropped_share(75, 25).expect("75 %");
+        assert!((share - 0.75).abs() < 1e-12);
+        let advice = drop_advice(share, Pacing::Speed(4.0));
+        assert!(
+            advice.contains("75.0 %") && advice.contains("--speed 0"),
+            "{advice}"
+        );
+    }
+}

@@ -1,0 +1,101 @@
+//! The simulator as a frame source (demo build only): frames rendered for
+//! the detector, or the oracle's boxes with an occasional rendered frame for
+//! the preview.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use towernav_sim::{Conditions, FrameTruth, Scenario};
+
+use super::source::{CapturedFrame, FrameSource, SourceError};
+
+/// What the simulator renders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SimRender {
+    /// Every frame, for the detector.
+    Detector,
+    /// The oracle's boxes, with one frame in `n` rendered for the operator's preview.
+    PreviewEvery(u64),
+    /// The oracle's boxes only.
+    Never,
+}
+
+/// The simulator: frames rendered for the detector, or the oracle's boxes
+/// (with an occasional rendered frame for the preview).
+pub struct SimSource {
+    scenario: Arc<Scenario>,
+    frames: Box<dyn Iterator<Item = (FrameTruth, towernav_protocol::DetectionFrame)> + Send>,
+    render: Option<(
+        towernav_sim::Renderer,
+        towernav_sim::FrameBuffers,
+        Conditions,
+    )>,
+    mode: SimRender,
+    max_frames: u64,
+}
+
+impl SimSource {
+    pub fn new(scenario: Arc<Scenario>, mode: SimRender, max_frames: Option<u64>) -> Self {
+        let render = (mode != SimRender::Never).then(|| {
+            let renderer = scenario.renderer();
+            let buffers = renderer.buffers();
+            (renderer, buffers, Conditions::default())
+        });
+        Self {
+            frames: Box::new(scenario.frames_shared()),
+            scenario,
+            render,
+            mode,
+            max_frames: max_frames.unwrap_or(u64::MAX),
+        }
+    }
+}
+
+impl FrameSource for SimSource {
+    fn next_frame(&mut self) -> Option<Result<CapturedFrame, SourceError>> {
+        let (truth, frame) = self.frames.next()?;
+        if frame.seq >= self.max_frames {
+            return None;
+        }
+        let oracle = match self.mode {
+            SimRender::Detector => None,
+            SimRender::PreviewEvery(_) | SimRender::Never => Some(frame.detections),
+        };
+        let draw = match self.mode {
+            SimRender::Detector => true,
+            SimRender::PreviewEvery(n) => frame.seq % n.max(1) == 0,
+            SimRender::Never => false,
+        };
+        let image = match &mut self.render {
+            Some((renderer, buffers, conditions)) if draw => {
+                self.scenario
+                    .render_into(renderer, buffers, &truth, conditions);
+                Some(buffers.image.clone())
+            }
+            _ => None,
+        };
+        let detections = oracle;
+        Some(Ok(CapturedFrame {
+            seq: frame.seq,
+            time_s: frame.time_s,
+            captured: Instant::now(),
+            image,
+            detections,
+            attitude: Some(frame.imu_attitude),
+            truth_in_world: Some(truth.pose.position_in_world),
+        }))
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "simulator ({} frames at {} Hz, {})",
+            self.scenario.frame_count(),
+            self.scenario.fps,
+            match self.mode {
+                SimRender::Detector => "rendered",
+                SimRender::PreviewEvery(_) => "oracle boxes, rendered previews",
+                SimRender::Never => "oracle boxes",
+            }
+        )
+    }
+}

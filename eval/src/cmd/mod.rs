@@ -1,0 +1,9 @@
+//! The eval commands of `towernav-edge` (behind its `demo` feature): each
+//! renders or replays its cases, scores them, and writes tables, files and
+//! plots. They return `anyhow` errors, as the binary's commands do.
+
+pub mod demo_plots;
+pub mod detector_eval;
+pub mod loc_eval;
+pub mod loc_plots;
+pub mod tracking_eval;

@@ -1,0 +1,18 @@
+//! Evaluations: the pipeline's outputs scored from outside against the
+//! simulator's truth. Detector mAP (`map_eval`, `confusion`), CLEAR MOT and
+//! IDF1 (`mot_metrics`, `tracking_eval`), localization error (`loc_eval`,
+//! `sim_eval`), the demo's report (`report`) and its scoring of the daemon's
+//! outputs against truth (`truth_scorer`); `cmd` holds the eval commands
+//! with their tables, files and plots.
+
+pub mod annotate;
+pub mod cmd;
+pub mod confusion;
+pub mod loc_eval;
+pub mod map_eval;
+pub mod mot_metrics;
+pub mod progress;
+pub mod report;
+pub mod sim_eval;
+pub mod tracking_eval;
+pub mod truth_scorer;

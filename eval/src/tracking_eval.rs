@@ -1,0 +1,235 @@
+//! Tracking and identity evaluation (pure): run a tracker (or the whole
+//! pipeline, for ours) over a scenario and score it with `mot_metrics`.
+
+use image::RgbImage;
+use towernav_geometry::{PinholeCamera, PixelBox};
+use towernav_sim::{Conditions, FrameTruth, Renderer, Scenario};
+
+use crate::mot_metrics::{Hypothesis, MotAccumulator, MotMetrics};
+use towernav_core::landmarks::LandmarkMap;
+use towernav_core::pipeline::{FrameOutput, Pipeline, PipelineConfig};
+use towernav_core::tracker::appearance::{DIM, describe};
+use towernav_core::tracker::{
+    ByteParams, ByteTracker, CameraMotion, DeepSortParams, DeepSortTracker, SortParams,
+    SortTracker, TimelineCorrection, TimelineParams, Tracker, TrackerInput,
+};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// SORT alone, as the paper ran it: identities are its track ids.
+    Sort,
+    /// SORT followed by the paper's timeline correction.
+    SortTimeline,
+    /// SORT with camera-motion compensation from the IMU.
+    SortCmc,
+    /// ByteTrack-style with camera-motion compensation.
+    ByteTrack,
+    /// DeepSORT with camera-motion compensation and appearance from rendered crops.
+    DeepSort,
+    /// DeepSORT followed by the paper's timeline correction.
+    DeepSortTimeline,
+    /// Ours: SORT with compensation, identity (map association, trusted-pose
+    /// gating, evidence with hysteresis) and localization; identities are the bound towers.
+    Ours,
+}
+
+impl Method {
+    pub const ALL: [Method; 7] = [
+        Method::Sort,
+        Method::SortTimeline,
+        Method::SortCmc,
+        Method::ByteTrack,
+        Method::DeepSort,
+        Method::DeepSortTimeline,
+        Method::Ours,
+    ];
+
+    /// Whether the method needs appearance descriptors of each detection.
+    pub fn needs_features(self) -> bool {
+        matches!(self, Self::DeepSort | Self::DeepSortTimeline)
+    }
+
+    /// For file names.
+    pub fn slug(self) -> &'static str {
+        match self {
+            Self::Sort => "sort",
+            Self::SortTimeline => "sort-timeline",
+            Self::SortCmc => "sort-cmc",
+            Self::ByteTrack => "bytetrack-cmc",
+            Self::DeepSort => "deepsort-cmc",
+            Self::DeepSortTimeline => "deepsort-cmc-timeline",
+            Self::Ours => "ours",
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Sort => "SORT",
+            Self::SortTimeline => "SORT + timeline correction",
+            Self::SortCmc => "SORT + CMC",
+            Self::ByteTrack => "ByteTrack-style + CMC",
+            Self::DeepSort => "DeepSORT + CMC",
+            Self::DeepSortTimeline => "DeepSORT + CMC + timeline correction",
+            Self::Ours => "ours (identity + map association)",
+        }
+    }
+}
+
+/// Per-frame hypotheses of one run, in MOT terms, and their metrics.
+#[derive(Debug, Clone, Default)]
+pub struct TrackingRun {
+    /// (frame seq, hypotheses) for MOT-format output.
+    pub frames: Vec<(u64, Vec<Hypothesis>)>,
+    pub metrics: MotMetrics,
+}
+
+/// Whether a true box is one a tracker must cover: tall enough that the
+/// detector reliably reports it, and mostly unhidden. Others are "don't care".
+pub fn demanded(b: &towernav_sim::TruthBox, scenario: &Scenario) -> bool {
+    b.bbox.height() >= 2.0 * scenario.oracle.min_height_px && b.occluded < 0.75
+}
+
+/// Score one frame's hypotheses against its truth (demanded boxes; the rest "don't care").
+pub fn add_frame(
+    acc: &mut MotAccumulator,
+    scenario: &Scenario,
+    truth: &FrameTruth,
+    hyps: &[Hypothesis],
+) {
+    let (gt, ignore): (Vec<_>, Vec<_>) = truth.boxes.iter().partition(|b| demanded(b, scenario));
+    let gt: Vec<(String, _)> = gt.iter().map(|b| (b.tower_id.clone(), b.bbox)).collect();
+    let ignore: Vec<_> = ignore.iter().map(|b| b.bbox).collect();
+    acc.add_frame(&gt, &ignore, hyps);
+}
+
+/// Ours, as hypotheses: a bound track is named by its tower, an unbound one by its track.
+pub fn pipeline_hypotheses(out: &FrameOutput, map: &LandmarkMap) -> Vec<Hypothesis> {
+    out.tracks
+        .iter()
+        .map(|t| {
+            let tower = t.tower.map(|i| map.towers[i].id.clone());
+            Hypothesis {
+                id: tower
+                    .clone()
+                    .unwrap_or_else(|| format!("track-{}", t.track_id)),
+                bbox: t.bbox,
+                tower,
+            }
+        })
+        .collect()
+}
+
+/// Turns one rendered frame's boxes into appearance descriptors.
+pub type Describer<'a> = dyn FnMut(&RgbImage, &[PixelBox]) -> Vec<Vec<f32>> + 'a;
+
+/// The Rust crop descriptor for each box of a frame.
+pub fn describe_all(image: &RgbImage, boxes: &[PixelBox]) -> Vec<Vec<f32>> {
+    boxes
+        .iter()
+        .map(|b| describe(image, b).unwrap_or_else(|| vec![0.0; DIM]))
+        .collect()
+}
+
+/// Appearance descriptors of every detection of every frame, from the frames
+/// rendered at half resolution; `describe` turns a frame's boxes into
+/// descriptors (`describe_all`, or a re-identification model in the shell).
+/// `on_frame` reports progress.
+pub fn render_features(
+    scenario: &Scenario,
+    describe: &mut Describer<'_>,
+    mut on_frame: impl FnMut(u64),
+) -> Vec<Vec<Vec<f32>>> {
+    let half = PinholeCamera {
+        intrinsics: scenario.camera.intrinsics.scaled(0.5),
+        mount: scenario.camera.mount,
+    };
+    let renderer = Renderer::new(&scenario.world, half, scenario.seed);
+    let mut buffers = renderer.buffers();
+    let conditions = Conditions::default();
+    scenario
+        .frames()
+        .map(|(truth, frame)| {
+            let rates = scenario.flight.attitude_rates(truth.time_s);
+            renderer.render_into(&mut buffers, &truth.pose, &conditions, rates, truth.seq);
+            on_frame(truth.seq);
+            let boxes: Vec<PixelBox> = frame
+                .detections
+                .iter()
+                .map(|d| {
+                    PixelBox::new(
+                        d.bbox.left * 0.5,
+                        d.bbox.top * 0.5,
+                        d.bbox.right * 0.5,
+                        d.bbox.bottom * 0.5,
+                    )
+                })
+                .collect();
+            describe(&buffers.image, &boxes)
+        })
+        .collect()
+}
+
+/// Run `method` over `scenario`. `features` (from `render_features`) feed the
+/// DeepSORT methods, which fall back to IoU without them.
+pub fn run(
+    scenario: &Scenario,
+    map: &LandmarkMap,
+    method: Method,
+    features: Option<&[Vec<Vec<f32>>]>,
+) -> TrackingRun {
+    let mut acc = MotAccumulator::default();
+    let mut frames = Vec::new();
+    let mut tracker: Box<dyn Tracker> = match method {
+        Method::ByteTrack => Box::new(ByteTracker::new(ByteParams::default())),
+        Method::DeepSort | Method::DeepSortTimeline => {
+            Box::new(DeepSortTracker::new(DeepSortParams::default()))
+        }
+        _ => Box::new(SortTracker::new(SortParams::default())),
+    };
+    let mut timeline = TimelineCorrection::new(TimelineParams::default());
+    let mut prev_attitude = None;
+    let mut pipeline = Pipeline::new(
+        PipelineConfig::new(scenario.camera, scenario.start_in_world()),
+        map.clone(),
+    );
+    for (truth, frame) in scenario.frames() {
+        let hyps: Vec<Hypothesis> = if method == Method::Ours {
+            pipeline_hypotheses(&pipeline.process(&frame), map)
+        } else {
+            let compensate = !matches!(method, Method::Sort | Method::SortTimeline);
+            let motion = prev_attitude.filter(|_| compensate).map(|before| {
+                CameraMotion::between(&scenario.camera, &before, &frame.imu_attitude)
+            });
+            prev_attitude = Some(frame.imu_attitude);
+            let feats = features
+                .filter(|_| method.needs_features())
+                .and_then(|f| f.get(truth.seq as usize))
+                .map(Vec::as_slice);
+            let outputs = tracker.step(&TrackerInput {
+                time_s: frame.time_s,
+                detections: &frame.detections,
+                motion: motion.as_ref(),
+                features: feats,
+            });
+            let outputs = if matches!(method, Method::SortTimeline | Method::DeepSortTimeline) {
+                timeline.apply(truth.seq, outputs)
+            } else {
+                outputs
+            };
+            outputs
+                .into_iter()
+                .map(|t| Hypothesis {
+                    id: t.track_id.to_string(),
+                    bbox: t.bbox,
+                    tower: None,
+                })
+                .collect()
+        };
+        add_frame(&mut acc, scenario, &truth, &hyps);
+        frames.push((truth.seq, hyps));
+    }
+    TrackingRun {
+        frames,
+        metrics: acc.finish(),
+    }
+}

@@ -1,0 +1,17 @@
+//! The cross-crate tests, one module per concern, in one binary.
+
+mod autopilot_link;
+mod detector;
+mod edge_daemon;
+mod fleet;
+mod ground_station_net;
+mod invariants;
+mod landmark_import;
+mod landmark_sync;
+mod localization;
+mod onnx_reid;
+mod pipeline;
+mod replay;
+mod sim_source;
+mod tracking;
+mod video_source;
