@@ -76,16 +76,7 @@ pub async fn run_edge(
         Some(sim) => sim.source(config),
         None => open_source(config)?,
     };
-    let method = Method::from_name(&config.pipeline.method)
-        .with_context(|| format!("pipeline.method = {:?}", config.pipeline.method))?;
-    let mut pipeline_config = PipelineConfig::new(camera, takeoff_in_world);
-    pipeline_config.method = method;
-    if !config.pipeline.filter {
-        pipeline_config.filter = None;
-    }
-    if let Some(dir) = &config.output.annotated {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
+    let (pipeline, method) = pipeline_for(config, camera, takeoff_in_world, map)?;
     let core = DaemonCore::new(
         DaemonConfig {
             uav,
@@ -95,21 +86,10 @@ pub async fn run_edge(
             preview_every: (config.output.preview_hz > 0.0)
                 .then(|| Duration::from_secs_f64(1.0 / config.output.preview_hz)),
         },
-        Pipeline::new(pipeline_config, map),
+        pipeline,
         Instant::now(),
     );
-    let options = RunOptions {
-        pacing: config.source.pacing(),
-        queue: config.source.queue,
-        detector_name,
-        jsonl: config.output.jsonl.clone(),
-        mavlink: config
-            .mavlink
-            .enabled
-            .then(|| MavlinkOut::open(&config.mavlink))
-            .transpose()?,
-        annotate_dir: config.output.annotated.clone(),
-    };
+    let options = run_options(config, detector_name)?;
     print_banner(config, &fleet);
 
     #[cfg(feature = "demo")]
@@ -147,6 +127,42 @@ pub async fn run_edge(
     print_closing_line(&summary);
     warn_drops(config, &summary);
     Ok(summary)
+}
+
+/// The pipeline the config asks for, and its method.
+fn pipeline_for(
+    config: &EdgeConfig,
+    camera: PinholeCamera,
+    takeoff_in_world: Point3<f64>,
+    map: LandmarkMap,
+) -> anyhow::Result<(Pipeline, Method)> {
+    let method = Method::from_name(&config.pipeline.method)
+        .with_context(|| format!("pipeline.method = {:?}", config.pipeline.method))?;
+    let mut pipeline_config = PipelineConfig::new(camera, takeoff_in_world);
+    pipeline_config.method = method;
+    if !config.pipeline.filter {
+        pipeline_config.filter = None;
+    }
+    Ok((Pipeline::new(pipeline_config, map), method))
+}
+
+/// The shell's side of the config: pacing, queue, logs, MAVLink, annotated frames.
+fn run_options(config: &EdgeConfig, detector_name: String) -> anyhow::Result<RunOptions> {
+    if let Some(dir) = &config.output.annotated {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    Ok(RunOptions {
+        pacing: config.source.pacing(),
+        queue: config.source.queue,
+        detector_name,
+        jsonl: config.output.jsonl.clone(),
+        mavlink: config
+            .mavlink
+            .enabled
+            .then(|| MavlinkOut::open(&config.mavlink))
+            .transpose()?,
+        annotate_dir: config.output.annotated.clone(),
+    })
 }
 
 /// The daemon's run, with a progress bar over a simulated flight in the demo build.

@@ -187,35 +187,7 @@ fn main() -> anyhow::Result<()> {
             images,
             weather,
             out,
-        } => {
-            let flight_plan = plan.plan()?;
-            let scenario = Scenario::flying(world.world()?, &flight_plan, seed);
-            tracing::info!(plan = %flight_plan.name, frames = scenario.frame_count(), duration_s = scenario.flight.duration_s(), "flying");
-            let replay = ReplaySource::Oracle {
-                world: match (&world.world, world.random_world) {
-                    (Some(path), _) => ReplayWorld::File(
-                        std::path::absolute(path).unwrap_or_else(|_| path.clone()),
-                    ),
-                    (None, Some(seed)) => ReplayWorld::Random(seed),
-                    (None, None) => ReplayWorld::PaperField,
-                },
-                flight: plan.spelled(),
-            };
-            cli::flight_cmd::write_flight(
-                &scenario,
-                &flight_plan.name,
-                &out,
-                images,
-                &conditions(weather, seed),
-                &replay,
-            )?;
-            eprintln!(
-                "wrote {} frames of {} to {}",
-                scenario.frame_count(),
-                flight_plan.name,
-                out.display()
-            );
-        }
+        } => fly(&world, &plan, seed, images, weather, &out)?,
         Command::Render {
             world,
             plan,
@@ -224,39 +196,7 @@ fn main() -> anyhow::Result<()> {
             weather,
             no_boxes,
             out,
-        } => {
-            let plan = plan.plan()?;
-            let scenario = Scenario::flying(world.world()?, &plan, seed);
-            let duration = scenario.flight.duration_s();
-            anyhow::ensure!(
-                (0.0..=duration).contains(&time),
-                "--time {time} is outside the flight, which lasts {duration:.1} s"
-            );
-            let seq = (time * scenario.fps).round() as u64;
-            let truth = scenario.truth(seq);
-            let renderer = Renderer::new(&scenario.world, scenario.camera, seed);
-            let rates = scenario.flight.attitude_rates(truth.time_s);
-            let mut image =
-                renderer.render(&truth.pose, &conditions(weather, seed), rates, seed ^ seq);
-            if !no_boxes {
-                cli::overlay::draw_boxes(&mut image, &truth.boxes);
-            }
-            image
-                .save(&out)
-                .with_context(|| format!("writing {}", out.display()))?;
-            for b in &truth.boxes {
-                eprintln!(
-                    "{:>8} {} h={:6.1} px  d={:6.1} m  occluded {:.2}{}",
-                    b.tower_id,
-                    b.tower_type,
-                    b.bbox.height(),
-                    b.distance_m,
-                    b.occluded,
-                    if b.truncated { "  cut by the edge" } else { "" }
-                );
-            }
-            eprintln!("wrote {}", out.display());
-        }
+        } => render(&world, &plan, seed, time, weather, no_boxes, &out)?,
         Command::Dataset {
             out,
             worlds,
@@ -278,5 +218,87 @@ fn main() -> anyhow::Result<()> {
             eprintln!("wrote {}", out.join("data.yaml").display());
         }
     }
+    Ok(())
+}
+
+/// `flight`: fly the plan and write its files (and frames with `images`).
+fn fly(
+    world: &WorldArg,
+    plan: &PlanArg,
+    seed: u64,
+    images: bool,
+    weather: Weather,
+    out: &std::path::Path,
+) -> anyhow::Result<()> {
+    let flight_plan = plan.plan()?;
+    let scenario = Scenario::flying(world.world()?, &flight_plan, seed);
+    tracing::info!(plan = %flight_plan.name, frames = scenario.frame_count(), duration_s = scenario.flight.duration_s(), "flying");
+    let replay = ReplaySource::Oracle {
+        world: match (&world.world, world.random_world) {
+            (Some(path), _) => {
+                ReplayWorld::File(std::path::absolute(path).unwrap_or_else(|_| path.clone()))
+            }
+            (None, Some(seed)) => ReplayWorld::Random(seed),
+            (None, None) => ReplayWorld::PaperField,
+        },
+        flight: plan.spelled(),
+    };
+    cli::flight_cmd::write_flight(
+        &scenario,
+        &flight_plan.name,
+        out,
+        images,
+        &conditions(weather, seed),
+        &replay,
+    )?;
+    eprintln!(
+        "wrote {} frames of {} to {}",
+        scenario.frame_count(),
+        flight_plan.name,
+        out.display()
+    );
+    Ok(())
+}
+
+/// `render`: one frame of the flight at `time`, with its truth boxes unless `no_boxes`.
+fn render(
+    world: &WorldArg,
+    plan: &PlanArg,
+    seed: u64,
+    time: f64,
+    weather: Weather,
+    no_boxes: bool,
+    out: &std::path::Path,
+) -> anyhow::Result<()> {
+    let plan = plan.plan()?;
+    let scenario = Scenario::flying(world.world()?, &plan, seed);
+    let duration = scenario.flight.duration_s();
+    anyhow::ensure!(
+        (0.0..=duration).contains(&time),
+        "--time {time} is outside the flight, which lasts {duration:.1} s"
+    );
+    let seq = (time * scenario.fps).round() as u64;
+    let truth = scenario.truth(seq);
+    let renderer = Renderer::new(&scenario.world, scenario.camera, seed);
+    let rates = scenario.flight.attitude_rates(truth.time_s);
+    let mut image = renderer.render(&truth.pose, &conditions(weather, seed), rates, seed ^ seq);
+    if !no_boxes {
+        cli::overlay::draw_boxes(&mut image, &truth.boxes);
+    }
+    image
+        .save(out)
+        .with_context(|| format!("writing {}", out.display()))?;
+    for b in &truth.boxes {
+        eprintln!(
+            "{:>8} {} h={:6.1} px  d={:6.1} m  occluded {:.2}{}",
+            b.tower_id,
+            b.tower_type,
+            b.bbox.height(),
+            b.distance_m,
+            b.occluded,
+            if b.truncated { "  cut by the edge" } else { "" }
+        );
+    }
+    eprintln!("wrote {}", out.display());
     Ok(())
 }

@@ -12,7 +12,9 @@ use std::time::{Duration, Instant};
 use image::RgbImage;
 use image::codecs::jpeg::JpegEncoder;
 use towernav_core::LandmarkMap;
-use towernav_core::daemon::{Command, DaemonCore, FrameObserver, Output, SourceCounters};
+use towernav_core::daemon::{
+    Command, DaemonCore, DetectedFrame, FrameObserver, Output, SourceCounters,
+};
 use towernav_core::flight_record::FlightRecord;
 use towernav_geometry::Datum;
 use towernav_protocol::{IdCorrection, PoseEstimate, Preview, TrackReport, TruthPose};
@@ -100,7 +102,7 @@ impl Daemon<'_> {
             worker,
             mut core,
             datum,
-            options,
+            mut options,
             mut sync,
             mut observer,
             stop,
@@ -119,16 +121,7 @@ impl Daemon<'_> {
         let worker_queue = queue.clone();
         let worker_task = tokio::task::spawn_blocking(move || worker.run(worker_queue, frames_tx));
 
-        let mut sinks = Sinks {
-            node,
-            datum,
-            jsonl: open_jsonl(options.jsonl.as_deref())?,
-            mavlink: options.mavlink,
-            annotate_dir: options.annotate_dir,
-            record: FlightRecord::default(),
-            pacing: options.pacing,
-            warned_drops: false,
-        };
+        let mut sinks = Sinks::new(node, datum, &mut options)?;
         let counters = || SourceCounters {
             dropped: queue.dropped(),
             failed: failed_source.load(Ordering::Relaxed),
@@ -149,16 +142,8 @@ impl Daemon<'_> {
                     let (frame, image, truth) =
                         (detected.frame, detected.image, detected.truth_in_world);
                     let time_s = frame.time_s;
-                    // The pipeline is CPU work: off the runtime's threads, so the
-                    // sockets of this and any other task stay served meanwhile.
-                    let (back, seconds) = tokio::task::spawn_blocking(move || {
-                        let t0 = Instant::now();
-                        core.handle_frame(t0, frame);
-                        (core, t0.elapsed().as_secs_f64())
-                    })
-                    .await
-                    .map_err(|e| ShellError::Daemon(format!("the pipeline failed: {e}")))?;
-                    core = back;
+                    let seconds;
+                    (core, seconds) = process(core, frame).await?;
                     sinks.record.core_seconds += seconds;
                     let processed = Processed {
                         seq,
@@ -173,16 +158,7 @@ impl Daemon<'_> {
                 }
                 Event::Correction(c) => core.handle_command(Instant::now(), Command::Correct(c)),
                 Event::Landmarks(change) => {
-                    if let Some(sync) = sync.as_deref_mut()
-                        && sync.apply(change).await?
-                    {
-                        let replica = sync.replica();
-                        tracing::info!(
-                            revision = replica.revision,
-                            towers = replica.len(),
-                            "landmarks updated from the ground station"
-                        );
-                        let map = LandmarkMap::from_records(&replica.records(), &datum);
+                    if let Some(map) = changed_map(sync.as_deref_mut(), change, &datum).await? {
                         core.handle_command(Instant::now(), Command::ReplaceMap(map));
                     }
                 }
@@ -208,16 +184,17 @@ impl Daemon<'_> {
         if let Some(log) = sinks.jsonl.as_mut() {
             let _ = log.flush();
         }
-        let mut record = sinks.record;
-        record.detect_seconds = totals.detect_seconds;
-        record.detector_errors = totals.failed;
-        record.detector =
-            (options.detector_name != "oracle").then(|| options.detector_name.clone());
         let summary = RunSummary {
             failed: totals.failed + failed_source.load(Ordering::Relaxed),
             dropped: queue.dropped(),
             mavlink_sent: sinks.mavlink.as_ref().map_or(0, |m| m.sent),
-            record,
+            record: FlightRecord {
+                detect_seconds: totals.detect_seconds,
+                detector_errors: totals.failed,
+                detector: (options.detector_name != "oracle")
+                    .then(|| options.detector_name.clone()),
+                ..sinks.record
+            },
             latency_ms: core.latency_ms().to_vec(),
         };
         log_stop(&summary, options.pacing);
@@ -225,7 +202,21 @@ impl Daemon<'_> {
     }
 }
 
-impl Sinks<'_> {
+impl<'a> Sinks<'a> {
+    /// The sinks `options` ask for; takes its MAVLink link and folders.
+    fn new(node: &'a EdgeNode, datum: Datum, options: &mut RunOptions) -> Result<Self, ShellError> {
+        Ok(Self {
+            node,
+            datum,
+            jsonl: open_jsonl(options.jsonl.as_deref())?,
+            mavlink: options.mavlink.take(),
+            annotate_dir: options.annotate_dir.take(),
+            record: FlightRecord::default(),
+            pacing: options.pacing,
+            warned_drops: false,
+        })
+    }
+
     /// One frame the core has processed: to the observer, and out.
     async fn frame(
         &mut self,
@@ -336,6 +327,44 @@ impl Sinks<'_> {
             self.jsonl = None;
         }
     }
+}
+
+/// One frame through the core, and the seconds it took. The pipeline is CPU
+/// work: it runs off the runtime's threads, so the sockets of this and every
+/// other task stay served meanwhile (twenty edges in one process lost whole
+/// UAVs' poses when it did not).
+async fn process(
+    mut core: DaemonCore,
+    frame: DetectedFrame,
+) -> Result<(DaemonCore, f64), ShellError> {
+    tokio::task::spawn_blocking(move || {
+        let t0 = Instant::now();
+        core.handle_frame(t0, frame);
+        (core, t0.elapsed().as_secs_f64())
+    })
+    .await
+    .map_err(|e| ShellError::Daemon(format!("the pipeline failed: {e}")))
+}
+
+/// The map after a landmark change, when the change altered the set.
+async fn changed_map(
+    sync: Option<&mut LandmarkSync>,
+    change: Option<Sample>,
+    datum: &Datum,
+) -> Result<Option<LandmarkMap>, ShellError> {
+    let Some(sync) = sync else {
+        return Ok(None);
+    };
+    if !sync.apply(change).await? {
+        return Ok(None);
+    }
+    let replica = sync.replica();
+    tracing::info!(
+        revision = replica.revision,
+        towers = replica.len(),
+        "landmarks updated from the ground station"
+    );
+    Ok(Some(LandmarkMap::from_records(&replica.records(), datum)))
 }
 
 /// The next landmark change, or never when there is no sync.

@@ -5,8 +5,9 @@ use std::path::Path;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use towernav_geometry::Attitude;
 use towernav_sim::replay::ReplaySource;
-use towernav_sim::{Conditions, Renderer, Scenario};
+use towernav_sim::{Conditions, FrameTruth, Renderer, Scenario};
 
 use crate::cli::mot;
 
@@ -35,12 +36,8 @@ pub fn write_flight(
     replay: &ReplaySource,
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let traj_path = out.join("trajectory.csv");
-    let truth_path = out.join("truth.csv");
-    let mut traj = csv::Writer::from_path(&traj_path)
-        .with_context(|| format!("creating {}", traj_path.display()))?;
-    let mut truth_csv = csv::Writer::from_path(&truth_path)
-        .with_context(|| format!("creating {}", truth_path.display()))?;
+    let mut traj = csv_file(&out.join("trajectory.csv"))?;
+    let mut truth_csv = csv_file(&out.join("truth.csv"))?;
     traj.write_record([
         "seq",
         "time_s",
@@ -75,50 +72,19 @@ pub fn write_flight(
     let renderer = images.then(|| Renderer::new(&scenario.world, scenario.camera, scenario.seed));
     let mut buffers = renderer.as_ref().map(Renderer::buffers);
     let attitude_path = out.join("attitude.csv");
-    let mut attitude_csv = csv::Writer::from_path(&attitude_path)
-        .with_context(|| format!("creating {}", attitude_path.display()))?;
+    let mut attitude_csv = csv_file(&attitude_path)?;
     attitude_csv.write_record(["time_s", "roll_deg", "pitch_deg", "heading_deg"])?;
     let bar = progress(scenario.frame_count(), "flight");
     let mut truths = Vec::with_capacity(scenario.frame_count() as usize);
     for (truth, input) in scenario.frames() {
         let p = &truth.pose;
-        let a = &p.attitude;
-        let imu = &input.imu_attitude;
-        let values = [
-            truth.time_s,
-            p.position_in_world.x,
-            p.position_in_world.y,
-            p.position_in_world.z,
-            a.roll,
-            a.pitch,
-            a.yaw,
-            imu.roll,
-            imu.pitch,
-            imu.yaw,
-        ];
-        let mut row = vec![truth.seq.to_string()];
-        row.extend(values.iter().map(|v| format!("{v:.6}")));
-        traj.write_record(&row)?;
-        attitude_csv.write_record([
-            format!("{:.6}", truth.time_s),
-            format!("{:.4}", imu.roll.to_degrees()),
-            format!("{:.4}", imu.pitch.to_degrees()),
-            format!("{:.4}", imu.yaw_from_north().to_degrees().rem_euclid(360.0)),
-        ])?;
-        for b in &truth.boxes {
-            truth_csv.write_record([
-                truth.seq.to_string(),
-                b.tower_id.clone(),
-                b.tower_type.to_string(),
-                format!("{:.2}", b.bbox.left),
-                format!("{:.2}", b.bbox.top),
-                format!("{:.2}", b.bbox.right),
-                format!("{:.2}", b.bbox.bottom),
-                b.truncated.to_string(),
-                format!("{:.3}", b.occluded),
-                format!("{:.2}", b.distance_m),
-            ])?;
-        }
+        write_rows(
+            &truth,
+            &input.imu_attitude,
+            &mut traj,
+            &mut attitude_csv,
+            &mut truth_csv,
+        )?;
         if let (Some(renderer), Some(buffers)) = (&renderer, &mut buffers) {
             let rates = scenario.flight.attitude_rates(truth.time_s);
             renderer.render_into(buffers, p, conditions, rates, scenario.seed ^ truth.seq);
@@ -177,4 +143,57 @@ fn write_replay_config(
     let path = out.join("replay.toml");
     let text = source.config_toml(scenario, &absolute(&path), &absolute(towers));
     std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+fn csv_file(path: &Path) -> anyhow::Result<csv::Writer<std::fs::File>> {
+    csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))
+}
+
+/// One frame's rows: the trajectory (truth and IMU), the attitude log as a
+/// camera replay reads it, and the truth boxes.
+fn write_rows(
+    truth: &FrameTruth,
+    imu: &Attitude,
+    traj: &mut csv::Writer<std::fs::File>,
+    attitude_csv: &mut csv::Writer<std::fs::File>,
+    truth_csv: &mut csv::Writer<std::fs::File>,
+) -> anyhow::Result<()> {
+    let p = &truth.pose;
+    let a = &p.attitude;
+    let values = [
+        truth.time_s,
+        p.position_in_world.x,
+        p.position_in_world.y,
+        p.position_in_world.z,
+        a.roll,
+        a.pitch,
+        a.yaw,
+        imu.roll,
+        imu.pitch,
+        imu.yaw,
+    ];
+    let mut row = vec![truth.seq.to_string()];
+    row.extend(values.iter().map(|v| format!("{v:.6}")));
+    traj.write_record(&row)?;
+    attitude_csv.write_record([
+        format!("{:.6}", truth.time_s),
+        format!("{:.4}", imu.roll.to_degrees()),
+        format!("{:.4}", imu.pitch.to_degrees()),
+        format!("{:.4}", imu.yaw_from_north().to_degrees().rem_euclid(360.0)),
+    ])?;
+    for b in &truth.boxes {
+        truth_csv.write_record([
+            truth.seq.to_string(),
+            b.tower_id.clone(),
+            b.tower_type.to_string(),
+            format!("{:.2}", b.bbox.left),
+            format!("{:.2}", b.bbox.top),
+            format!("{:.2}", b.bbox.right),
+            format!("{:.2}", b.bbox.bottom),
+            b.truncated.to_string(),
+            format!("{:.3}", b.occluded),
+            format!("{:.2}", b.distance_m),
+        ])?;
+    }
+    Ok(())
 }
