@@ -220,48 +220,79 @@ impl Identity {
             .any(|t| guess_trusted || !self.bindings.contains_key(&t.track_id));
         let near: Vec<usize> = if needed { candidates() } else { Vec::new() };
         if guess_trusted {
-            let bound_here: Vec<(&TrackOutput, usize)> = tracks
+            self.release_disagreeing(tracks, &near, &predict, image, map);
+        }
+        self.bind_unbound(tracks, &near, &predict, image, map, guess_trusted);
+        tracks
+            .iter()
+            .map(|t| self.bindings.get(&t.track_id).copied())
+            .collect()
+    }
+
+    /// With a trusted guess: a binding far from its own tower, or beaten by a
+    /// tower of its type by the hysteresis margin, takes a strike; enough
+    /// strikes in a row release it.
+    fn release_disagreeing(
+        &mut self,
+        tracks: &[TrackOutput],
+        near: &[usize],
+        predict: &dyn Fn(usize) -> Option<(f64, f64, f64)>,
+        image: (f64, f64),
+        map: &LandmarkMap,
+    ) {
+        let bound_here: Vec<(&TrackOutput, usize)> = tracks
+            .iter()
+            .filter(|t| !self.pinned.contains_key(&t.track_id))
+            .filter_map(|t| self.bindings.get(&t.track_id).map(|&b| (t, b)))
+            .collect();
+        // Predict each nearby tower once, not once per track.
+        let near_pred: Vec<(usize, (f64, f64, f64))> = near
+            .iter()
+            .filter_map(|&i| predict(i).map(|p| (i, p)))
+            .collect();
+        for (t, tower) in bound_here {
+            let own = near_pred
                 .iter()
-                .filter(|t| !self.pinned.contains_key(&t.track_id))
-                .filter_map(|t| self.bindings.get(&t.track_id).map(|&b| (t, b)))
-                .collect();
-            // Predict each nearby tower once, not once per track.
-            let near_pred: Vec<(usize, (f64, f64, f64))> = near
-                .iter()
-                .filter_map(|&i| predict(i).map(|p| (i, p)))
-                .collect();
-            for (t, tower) in bound_here {
-                let own = near_pred
-                    .iter()
-                    .find(|(i, _)| *i == tower)
-                    .map(|(_, p)| *p)
-                    .or_else(|| predict(tower));
-                let current = own.map(|pred| self.distance(t, pred, image, true));
-                // Evidence against the binding: far from its own tower, or a
-                // tower of the same type fits clearly better (hysteresis margin).
-                let off = match current {
-                    None => true,
-                    Some(None) => false,
-                    Some(Some(d)) => {
-                        d > self.params.release_gate
-                            || near_pred.iter().any(|&(other, p)| {
-                                other != tower
-                                    && map.towers[other].tower_type == t.tower_type
-                                    && self
-                                        .distance(t, p, image, true)
-                                        .is_some_and(|alt| alt + self.params.switch_margin < d)
-                            })
-                    }
-                };
-                let strikes = self.strikes.entry(t.track_id).or_insert(0);
-                *strikes = if off { *strikes + 1 } else { 0 };
-                if *strikes >= self.params.release_after {
-                    self.bindings.remove(&t.track_id);
-                    self.strikes.remove(&t.track_id);
+                .find(|(i, _)| *i == tower)
+                .map(|(_, p)| *p)
+                .or_else(|| predict(tower));
+            let current = own.map(|pred| self.distance(t, pred, image, true));
+            // Evidence against the binding: far from its own tower, or a
+            // tower of the same type fits clearly better (hysteresis margin).
+            let off = match current {
+                None => true,
+                Some(None) => false,
+                Some(Some(d)) => {
+                    d > self.params.release_gate
+                        || near_pred.iter().any(|&(other, p)| {
+                            other != tower
+                                && map.towers[other].tower_type == t.tower_type
+                                && self
+                                    .distance(t, p, image, true)
+                                    .is_some_and(|alt| alt + self.params.switch_margin < d)
+                        })
                 }
+            };
+            let strikes = self.strikes.entry(t.track_id).or_insert(0);
+            *strikes = if off { *strikes + 1 } else { 0 };
+            if *strikes >= self.params.release_after {
+                self.bindings.remove(&t.track_id);
+                self.strikes.remove(&t.track_id);
             }
         }
+    }
 
+    /// Binds the tracks that have no tower to the free nearby towers of their
+    /// type, best matches first.
+    fn bind_unbound(
+        &mut self,
+        tracks: &[TrackOutput],
+        near: &[usize],
+        predict: &dyn Fn(usize) -> Option<(f64, f64, f64)>,
+        image: (f64, f64),
+        map: &LandmarkMap,
+        guess_trusted: bool,
+    ) {
         let unbound: Vec<&TrackOutput> = tracks
             .iter()
             .filter(|t| {
@@ -297,10 +328,6 @@ impl Identity {
                 self.bindings.insert(unbound[r].track_id, free[c]);
             }
         }
-        tracks
-            .iter()
-            .map(|t| self.bindings.get(&t.track_id).copied())
-            .collect()
     }
 }
 
