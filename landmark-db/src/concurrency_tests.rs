@@ -4,13 +4,8 @@
 use std::sync::{Arc, Barrier};
 use std::time::{Duration, Instant};
 
-use towernav_protocol::{LandmarkRecord, TowerType};
-
+use crate::fixtures::tower;
 use crate::store::{Author, Expect, LandmarkDb};
-
-fn tower(id: &str) -> LandmarkRecord {
-    LandmarkRecord::new(id, TowerType::B, 30.5, 114.3, 20.0, 38.0)
-}
 
 fn author(by: &str) -> Author {
     Author {

@@ -250,11 +250,7 @@ pub fn likely_mistakes(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use towernav_protocol::TowerType;
-
-    fn tower(id: &str, lat: f64, height: f64) -> LandmarkRecord {
-        LandmarkRecord::new(id, TowerType::B, lat, 114.3, 20.0, height)
-    }
+    use crate::fixtures::tower_at as tower;
 
     #[test]
     fn flags_near_twins_replacements_and_odd_heights() {

@@ -29,4 +29,6 @@ pub use validate::{ValidationError, validate};
 #[cfg(test)]
 mod concurrency_tests;
 #[cfg(test)]
+mod fixtures;
+#[cfg(test)]
 mod round_trip_tests;

@@ -566,14 +566,7 @@ fn set_revision(tx: &Transaction<'_>, revision: u64) -> rusqlite::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    pub(crate) fn tower(id: &str, height_m: f64) -> LandmarkRecord {
-        LandmarkRecord {
-            notes: "survey 2026".into(),
-            sigma_horizontal_m: Some(0.05),
-            ..LandmarkRecord::new(id, TowerType::B, 30.5, 114.3, 20.0, height_m)
-        }
-    }
+    use crate::fixtures::surveyed as tower;
 
     fn surveyor() -> Author {
         Author {

@@ -47,7 +47,7 @@ fn sigkill_mid_stream_loses_no_committed_edit() {
     let mut child = Command::new(std::env::current_exe().expect("test binary"))
         .args([
             "--exact",
-            "sigkill_mid_stream_loses_no_committed_edit",
+            "crash::sigkill_mid_stream_loses_no_committed_edit",
             "--nocapture",
             "--test-threads=1",
         ])
