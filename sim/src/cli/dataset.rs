@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::Context;
 use towernav_protocol::TowerType;
-use towernav_sim::Scenario;
+use towernav_sim::{FrameTruth, Scenario};
 
 use crate::cli::flight_cmd::progress;
 use crate::cli::mot;
@@ -102,25 +102,8 @@ pub fn write_dataset(out: &Path, options: &DatasetOptions) -> anyhow::Result<()>
                     .join("labels")
                     .join(split.name())
                     .join(format!("{stem}.txt"));
-                let mut file = std::io::BufWriter::new(
-                    std::fs::File::create(&label)
-                        .with_context(|| format!("creating {}", label.display()))?,
-                );
-                let (iw, ih) = (f64::from(k.width), f64::from(k.height));
-                for b in truth.boxes.iter().filter(|b| b.labelled()) {
-                    writeln!(
-                        file,
-                        "{} {:.6} {:.6} {:.6} {:.6}",
-                        b.tower_type.index(),
-                        b.bbox.center_x() / iw,
-                        b.bbox.center_y() / ih,
-                        b.bbox.width() / iw,
-                        b.bbox.height() / ih
-                    )?;
-                    counts[split as usize][b.tower_type.index()] += 1;
-                }
-                file.flush()
-                    .with_context(|| format!("writing {}", label.display()))?;
+                let size = (f64::from(k.width), f64::from(k.height));
+                write_labels(&label, &truth, size, &mut counts[split as usize])?;
                 images[split as usize] += 1;
                 bar.inc(1);
             }
@@ -142,18 +125,7 @@ pub fn write_dataset(out: &Path, options: &DatasetOptions) -> anyhow::Result<()>
             .with_context(|| format!("writing {}", towers_csv.display()))?;
     }
     bar.finish();
-    let root =
-        std::fs::canonicalize(out).with_context(|| format!("resolving {}", out.display()))?;
-    let names: String = TowerType::ALL
-        .iter()
-        .map(|t| format!("  {}: {}\n", t.index(), t))
-        .collect();
-    let yaml = format!(
-        "# Written by towernav-sim dataset --seed {seed}; worlds are split, never frames.\npath: {root}\ntrain: images/train\nval: images/val\ntest: images/test\nnames:\n{names}",
-        seed = options.seed,
-        root = root.display()
-    );
-    std::fs::write(out.join("data.yaml"), yaml).context("writing data.yaml")?;
+    write_data_yaml(out, options.seed)?;
     for split in [Split::Train, Split::Val, Split::Test] {
         let c = counts[split as usize];
         eprintln!(
@@ -167,6 +139,47 @@ pub fn write_dataset(out: &Path, options: &DatasetOptions) -> anyhow::Result<()>
         );
     }
     Ok(())
+}
+
+/// One image's YOLO labels (class, centre, size, normalized), counted per type.
+fn write_labels(
+    path: &Path,
+    truth: &FrameTruth,
+    (iw, ih): (f64, f64),
+    counts: &mut [usize; 4],
+) -> anyhow::Result<()> {
+    let mut file = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+    );
+    for b in truth.boxes.iter().filter(|b| b.labelled()) {
+        writeln!(
+            file,
+            "{} {:.6} {:.6} {:.6} {:.6}",
+            b.tower_type.index(),
+            b.bbox.center_x() / iw,
+            b.bbox.center_y() / ih,
+            b.bbox.width() / iw,
+            b.bbox.height() / ih
+        )?;
+        counts[b.tower_type.index()] += 1;
+    }
+    file.flush()
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Ultralytics' `data.yaml`: the absolute root, the splits and the class names.
+fn write_data_yaml(out: &Path, seed: u64) -> anyhow::Result<()> {
+    let root =
+        std::fs::canonicalize(out).with_context(|| format!("resolving {}", out.display()))?;
+    let names: String = TowerType::ALL
+        .iter()
+        .map(|t| format!("  {}: {}\n", t.index(), t))
+        .collect();
+    let yaml = format!(
+        "# Written by towernav-sim dataset --seed {seed}; worlds are split, never frames.\npath: {root}\ntrain: images/train\nval: images/val\ntest: images/test\nnames:\n{names}",
+        root = root.display()
+    );
+    std::fs::write(out.join("data.yaml"), yaml).context("writing data.yaml")
 }
 
 #[cfg(test)]
