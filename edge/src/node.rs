@@ -161,16 +161,9 @@ impl EdgeNode {
         Self::put(&self.status, status).await
     }
 
-    /// Corrections that arrived since the last call. A payload that does not decode
-    /// is logged with its key and dropped: there is no request id to refuse it by.
-    pub fn pending_corrections(&self) -> Vec<IdCorrection> {
-        std::iter::from_fn(|| self.corrections.try_recv().ok().flatten())
-            .filter_map(|sample| self.correction_in(&sample))
-            .collect()
-    }
-
     /// Waits for the next correction for this UAV (cancel-safe: a sample is
-    /// taken and read with no wait in between). Pending forever once the
+    /// taken and read with no wait in between). A payload that does not decode
+    /// is logged with its key and dropped: there is no request id to refuse it by. Pending forever once the
     /// subscription has closed.
     pub async fn next_correction(&self) -> IdCorrection {
         while let Ok(sample) = self.corrections.recv_async().await {

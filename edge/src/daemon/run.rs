@@ -189,6 +189,8 @@ impl Daemon<'_> {
             dropped: queue.dropped(),
             mavlink_sent: sinks.mavlink.as_ref().map_or(0, |m| m.sent),
             record: FlightRecord {
+                frames: core.frames(),
+                poses_published: core.poses(),
                 detect_seconds: totals.detect_seconds,
                 detector_errors: totals.failed,
                 detector: (options.detector_name != "oracle")
@@ -230,7 +232,6 @@ impl<'a> Sinks<'a> {
             image,
             truth,
         } = processed;
-        self.record.frames += 1;
         if let (Some(observer), Some(output)) = (observer, core.last_output()) {
             observer.observe(seq, output, core.pipeline().map());
         }
@@ -266,7 +267,6 @@ impl<'a> Sinks<'a> {
                     attitude,
                 } => {
                     self.node.publish_pose(&p).await?;
-                    self.record.poses_published += 1;
                     if let Some(out) = self.mavlink.as_mut()
                         && let Err(e) = out.offer(&p, state, &attitude)
                     {
@@ -302,12 +302,12 @@ impl<'a> Sinks<'a> {
                     self.node.publish_status(&status).await?;
                     if !self.warned_drops
                         && let Some(share) =
-                            dropped_share(status.frames_dropped, self.record.frames)
+                            dropped_share(status.frames_dropped, status.frames_processed)
                     {
                         self.warned_drops = true;
                         tracing::warn!(
                             dropped = status.frames_dropped,
-                            processed = self.record.frames,
+                            processed = status.frames_processed,
                             "{}",
                             drop_advice(share, self.pacing)
                         );

@@ -28,7 +28,6 @@ pub struct Detected {
 /// What the worker measured over the whole run.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct WorkerTotals {
-    pub frames: u64,
     pub failed: u64,
     pub detect_seconds: f64,
 }
@@ -58,7 +57,6 @@ impl Worker {
                 continue;
             };
             totals.detect_seconds += t0.elapsed().as_secs_f64();
-            totals.frames += 1;
             let detected = Detected {
                 frame: DetectedFrame {
                     seq: frame.seq,
