@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
-"""Train towernav's tower detector from scratch on the simulator's YOLO dataset.
+"""Train towernav's tower detector on the simulator's YOLO dataset: fine-tune
+from --init (the shipped `models/towers.pt`, as `cargo xtask train` passes it),
+or from scratch without it.
 
 Run through `cargo xtask train` (which renders the dataset and installs the
 pinned environment first), or by hand:
 
     .venv-train/bin/python training/train.py --data target/train/dataset --out target/train/run
 
-It trains a YOLOv5-family model (Ultralytics `yolov5n.yaml`, no pretrained
+It trains a YOLOv5-family model (Ultralytics `yolov5n.yaml`; no outside
 weights: nothing can be downloaded here) on the CPU within a wall-clock budget,
 resumes from `last.pt` when a run was interrupted, exports ONNX (opset 17,
 class names in the metadata) at the edge's input size, and evaluates on the
@@ -41,7 +43,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument(
         "--init",
         type=Path,
-        help="start from this project's own earlier checkpoint (a later stage of the same from-scratch training)",
+        help="start from this project's own checkpoint (models/towers.pt, or an earlier stage's best.pt)",
     )
     return p.parse_args()
 

@@ -2,16 +2,19 @@
 //! simulator's truth. Detector mAP (`map_eval`, `confusion`), CLEAR MOT and
 //! IDF1 (`mot_metrics`, `tracking_eval`), localization error (`loc_eval`,
 //! `sim_eval`), the demo's report (`report`) and its scoring of the daemon's
-//! outputs against truth (`truth_scorer`); `cmd` holds the eval commands
+//! outputs against truth (`truth_scorer`); the detector on real labelled
+//! photographs and tower-free frames (`image_folder`, `real_score`); `cmd` holds the eval commands
 //! with their tables, files and plots.
 
 pub mod annotate;
 pub mod cmd;
 pub mod confusion;
+pub mod image_folder;
 pub mod loc_eval;
 pub mod map_eval;
 pub mod mot_metrics;
 pub mod progress;
+pub mod real_score;
 pub mod report;
 pub mod sim_eval;
 pub mod tracking_eval;

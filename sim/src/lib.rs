@@ -13,12 +13,14 @@ pub mod replay;
 pub mod scenario;
 pub mod tower_model;
 pub mod truth;
+pub mod viewpoint;
 pub mod waypoints;
 pub mod world;
 
 pub use flight::{Flight, StraightFlight};
 pub use oracle::{OracleDetector, OracleParams};
-pub use render::{Conditions, FrameBuffers, Renderer};
+pub use render::lens::LensEffects;
+pub use render::{Backdrop, Conditions, FrameBuffers, Renderer, TowerPaint};
 pub use scenario::Scenario;
 pub use truth::{FrameTruth, TruthBox};
 pub use world::{SimTower, World};

@@ -113,7 +113,9 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Render one frame of a flight to PNG, with its truth boxes drawn unless --no-boxes.
+    /// Render one frame of a flight to PNG, with its truth boxes drawn unless
+    /// --no-boxes; with --randomized N, a contact sheet of N frames as the
+    /// randomized dataset draws them.
     Render {
         #[command(flatten)]
         world: WorldArg,
@@ -128,6 +130,12 @@ enum Command {
         weather: Weather,
         #[arg(long)]
         no_boxes: bool,
+        /// Draw this many randomized frames from worlds drawn from --seed instead, as one sheet.
+        #[arg(long, default_value_t = 0)]
+        randomized: usize,
+        /// Folders of real tower-free photos for the randomized frames' backgrounds.
+        #[arg(long)]
+        backgrounds: Vec<PathBuf>,
         #[arg(long)]
         out: PathBuf,
     },
@@ -145,6 +153,15 @@ enum Command {
         val_share: f64,
         #[arg(long, default_value_t = 0.1)]
         test_share: f64,
+        /// Share of frames drawn with domain randomization: random viewpoints
+        /// from the ground to 120 m, skies, paints, look-alikes, lens defects
+        /// and real photos behind the scene (from --backgrounds).
+        #[arg(long, default_value_t = 0.0)]
+        randomize: f64,
+        /// A folder of real tower-free photos (repeatable): backgrounds for
+        /// randomized frames, and each also a training image with no tower.
+        #[arg(long)]
+        backgrounds: Vec<PathBuf>,
     },
 }
 
@@ -195,8 +212,17 @@ fn main() -> anyhow::Result<()> {
             time,
             weather,
             no_boxes,
+            randomized,
+            backgrounds,
             out,
-        } => render(&world, &plan, seed, time, weather, no_boxes, &out)?,
+        } => {
+            if randomized > 0 {
+                cli::contact_sheet::write(&out, randomized, seed, &backgrounds)?;
+                eprintln!("wrote {}", out.display());
+            } else {
+                render(&world, &plan, seed, time, weather, no_boxes, &out)?;
+            }
+        }
         Command::Dataset {
             out,
             worlds,
@@ -204,6 +230,8 @@ fn main() -> anyhow::Result<()> {
             seed,
             val_share,
             test_share,
+            randomize,
+            backgrounds,
         } => {
             cli::dataset::write_dataset(
                 &out,
@@ -213,6 +241,8 @@ fn main() -> anyhow::Result<()> {
                     seed,
                     val_share,
                     test_share,
+                    randomize,
+                    backgrounds,
                 },
             )?;
             eprintln!("wrote {}", out.join("data.yaml").display());

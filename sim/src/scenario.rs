@@ -4,7 +4,7 @@ use rand::Rng;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
-use towernav_geometry::PinholeCamera;
+use towernav_geometry::{PinholeCamera, Pose};
 use towernav_protocol::DetectionFrame;
 
 use crate::flight::{Flight, StraightFlight};
@@ -95,9 +95,13 @@ impl Scenario {
     /// flight over it and random weather, all drawn from the seed. Training
     /// data and held-out evaluations draw from disjoint seeds.
     pub fn random_crossing(world_seed: u64) -> (Self, Conditions) {
+        Self::random_crossing_in(world_seed, &WorldParams::default())
+    }
+
+    /// [`Scenario::random_crossing`] over a world drawn with `params`.
+    pub fn random_crossing_in(world_seed: u64, params: &WorldParams) -> (Self, Conditions) {
         let mut rng = ChaCha8Rng::seed_from_u64(world_seed);
-        let params = WorldParams::default();
-        let world = World::random(world_seed, &params);
+        let world = World::random(world_seed, params);
         let towers: Vec<(f64, f64, f64)> = world
             .towers
             .iter()
@@ -143,6 +147,19 @@ impl Scenario {
 
     pub fn truth(&self, seq: u64) -> FrameTruth {
         self.truth_with(&outlines(&self.world), seq)
+    }
+
+    /// Truth for frame `seq` seen from `pose` instead of the flight's own.
+    pub fn truth_from(&self, seq: u64, pose: Pose) -> FrameTruth {
+        let t = seq as f64 / self.fps;
+        frame_truth(
+            &self.camera,
+            &self.world,
+            &outlines(&self.world),
+            seq,
+            t,
+            pose,
+        )
     }
 
     fn truth_with(&self, outlines: &[Outline], seq: u64) -> FrameTruth {

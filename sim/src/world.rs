@@ -54,6 +54,40 @@ pub enum Distractor {
         foot_in_world: Point3<f64>,
         height_m: f64,
     },
+    /// A cell mast: a slim three-legged lattice with antenna panels on top,
+    /// the hardest look-alike of a transmission tower.
+    Mast {
+        foot_in_world: Point3<f64>,
+        height_m: f64,
+    },
+    /// A street lamp: a pole with an arm reaching out over the road.
+    Lamp {
+        foot_in_world: Point3<f64>,
+        height_m: f64,
+        yaw: f64,
+    },
+    /// A wind turbine: a tapered tube, a nacelle and three blades.
+    Turbine {
+        foot_in_world: Point3<f64>,
+        hub_m: f64,
+        blade_m: f64,
+        /// Rotor angle of the first blade, radians.
+        phase: f64,
+        yaw: f64,
+    },
+    /// A tower crane: a lattice mast with a jib and a counter-jib.
+    Crane {
+        foot_in_world: Point3<f64>,
+        height_m: f64,
+        jib_m: f64,
+        yaw: f64,
+    },
+    /// A post-and-rail fence starting at `foot_in_world`.
+    Fence {
+        foot_in_world: Point3<f64>,
+        length_m: f64,
+        yaw: f64,
+    },
 }
 
 impl Distractor {
@@ -61,7 +95,12 @@ impl Distractor {
         match *self {
             Self::Tree { foot_in_world, .. }
             | Self::Building { foot_in_world, .. }
-            | Self::Pole { foot_in_world, .. } => foot_in_world,
+            | Self::Pole { foot_in_world, .. }
+            | Self::Mast { foot_in_world, .. }
+            | Self::Lamp { foot_in_world, .. }
+            | Self::Turbine { foot_in_world, .. }
+            | Self::Crane { foot_in_world, .. }
+            | Self::Fence { foot_in_world, .. } => foot_in_world,
         }
     }
 
@@ -89,6 +128,44 @@ impl Distractor {
                 foot_in_world,
                 height_m,
             } => (foot_in_world, Vector3::new(0.15, 0.15, 0.0), height_m),
+            Self::Mast {
+                foot_in_world,
+                height_m,
+            } => (foot_in_world, Vector3::new(1.5, 1.5, 0.0), height_m),
+            Self::Lamp {
+                foot_in_world,
+                height_m,
+                ..
+            } => (
+                foot_in_world,
+                Vector3::new(0.3 * height_m, 0.3 * height_m, 0.0),
+                height_m,
+            ),
+            Self::Turbine {
+                foot_in_world,
+                hub_m,
+                blade_m,
+                ..
+            } => (
+                foot_in_world,
+                Vector3::new(blade_m, blade_m, 0.0),
+                hub_m + blade_m,
+            ),
+            Self::Crane {
+                foot_in_world,
+                height_m,
+                jib_m,
+                ..
+            } => (
+                foot_in_world,
+                Vector3::new(jib_m, jib_m, 0.0),
+                height_m + 6.0,
+            ),
+            Self::Fence {
+                foot_in_world,
+                length_m,
+                ..
+            } => (foot_in_world, Vector3::new(length_m, length_m, 0.0), 1.3),
         };
         let mut out = [foot; 8];
         for (i, corner) in out.iter_mut().enumerate() {
@@ -122,6 +199,23 @@ pub struct WorldParams {
     pub trees: usize,
     pub buildings: usize,
     pub poles: usize,
+    /// How many of each look-alike that worlds for training add: cell masts,
+    /// street lamps, wind turbines, cranes and fences (none by default, so
+    /// the held-out evaluation worlds stay as they were).
+    pub clutter: usize,
+}
+
+impl WorldParams {
+    /// A world crowded with things a detector must not call a tower.
+    pub fn cluttered() -> Self {
+        Self {
+            trees: 90,
+            buildings: 14,
+            poles: 24,
+            clutter: 4,
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for WorldParams {
@@ -133,8 +227,51 @@ impl Default for WorldParams {
             trees: 60,
             buildings: 8,
             poles: 12,
+            clutter: 0,
         }
     }
+}
+
+/// One of each look-alike, at random spots with random sizes.
+fn push_clutter(
+    distractors: &mut Vec<Distractor>,
+    rng: &mut ChaCha8Rng,
+    spot: impl Fn(&mut ChaCha8Rng) -> Point3<f64>,
+) {
+    let yaw = |rng: &mut ChaCha8Rng| rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+    let foot_in_world = spot(rng);
+    distractors.push(Distractor::Mast {
+        foot_in_world,
+        height_m: rng.random_range(20.0..45.0),
+    });
+    let foot_in_world = spot(rng);
+    distractors.push(Distractor::Lamp {
+        foot_in_world,
+        height_m: rng.random_range(6.0..12.0),
+        yaw: yaw(rng),
+    });
+    let foot_in_world = spot(rng);
+    let hub_m = rng.random_range(60.0..110.0);
+    distractors.push(Distractor::Turbine {
+        foot_in_world,
+        hub_m,
+        blade_m: hub_m * rng.random_range(0.4..0.6),
+        phase: yaw(rng),
+        yaw: yaw(rng),
+    });
+    let foot_in_world = spot(rng);
+    distractors.push(Distractor::Crane {
+        foot_in_world,
+        height_m: rng.random_range(25.0..55.0),
+        jib_m: rng.random_range(25.0..50.0),
+        yaw: yaw(rng),
+    });
+    let foot_in_world = spot(rng);
+    distractors.push(Distractor::Fence {
+        foot_in_world,
+        length_m: rng.random_range(20.0..120.0),
+        yaw: yaw(rng),
+    });
 }
 
 /// Nominal height and base width per type; random worlds vary heights around them.
@@ -281,6 +418,9 @@ impl World {
                 foot_in_world,
                 height_m: rng.random_range(8.0..13.0),
             });
+        }
+        for _ in 0..params.clutter {
+            push_clutter(&mut distractors, &mut rng, spot);
         }
         // Nothing stands inside a tower's base.
         distractors.retain(|d| {

@@ -246,3 +246,135 @@ fn a_flight_without_images_writes_an_oracle_replay_over_the_same_world() {
             .count()
     );
 }
+
+/// Two tower-free "photos" (noise) in a folder, as a user's backgrounds.
+fn photo_folder(dir: &Path) -> std::path::PathBuf {
+    let photos = dir.join("photos");
+    std::fs::create_dir_all(&photos).expect("mkdir");
+    for (i, size) in [(640u32, 480u32), (300, 500)].into_iter().enumerate() {
+        let img = image::RgbImage::from_fn(size.0, size.1, |x, y| {
+            image::Rgb([(x * 7 + y) as u8, (y * 3) as u8, ((x ^ y) * 5) as u8])
+        });
+        img.save(photos.join(format!("p{i}.jpg"))).expect("jpeg");
+    }
+    photos
+}
+
+#[test]
+fn a_randomized_dataset_writes_valid_labels_and_its_photos_as_negatives() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let photos = photo_folder(dir.path());
+    let out = dir.path().join("ds");
+    sim(&[
+        "dataset",
+        "--out",
+        out.to_str().expect("utf-8"),
+        "--worlds",
+        "3",
+        "--frames-per-world",
+        "6",
+        "--seed",
+        "11",
+        "--randomize",
+        "1",
+        "--backgrounds",
+        photos.to_str().expect("utf-8"),
+    ]);
+    let mut boxes = 0;
+    for split in ["train", "val", "test"] {
+        let images = files(&out.join("images").join(split));
+        let labels = files(&out.join("labels").join(split));
+        assert_eq!(images.len(), labels.len(), "{split}: a label per image");
+        for label in &labels {
+            let text =
+                std::fs::read_to_string(out.join("labels").join(split).join(label)).expect("label");
+            if label.starts_with("photo") {
+                assert!(
+                    text.is_empty(),
+                    "a background photo shows no tower: {label}"
+                );
+                continue;
+            }
+            for line in text.lines() {
+                let v: Vec<f64> = line
+                    .split(' ')
+                    .map(|x| x.parse().expect("number"))
+                    .collect();
+                assert_eq!(v.len(), 5, "{line}");
+                assert!((0.0..=3.0).contains(&v[0]) && v[0].fract() == 0.0, "{line}");
+                let (cx, cy, w, h) = (v[1], v[2], v[3], v[4]);
+                assert!(w > 0.0 && h > 0.0, "a box with area: {line}");
+                assert!(
+                    cx - w / 2.0 >= -1e-6 && cx + w / 2.0 <= 1.0 + 1e-6,
+                    "inside the frame: {line}"
+                );
+                assert!(
+                    cy - h / 2.0 >= -1e-6 && cy + h / 2.0 <= 1.0 + 1e-6,
+                    "inside the frame: {line}"
+                );
+                boxes += 1;
+            }
+        }
+    }
+    assert!(
+        boxes > 10,
+        "randomized views still show towers ({boxes} boxes)"
+    );
+    let train = files(&out.join("images/train"));
+    assert_eq!(
+        train.iter().filter(|n| n.starts_with("photo")).count(),
+        2,
+        "each background photo is also a negative, in train only: {train:?}"
+    );
+    assert!(
+        !files(&out.join("images/test"))
+            .iter()
+            .any(|n| n.starts_with("photo"))
+    );
+
+    let sheet = dir.path().join("sheet.png");
+    sim(&[
+        "render",
+        "--randomized",
+        "8",
+        "--backgrounds",
+        photos.to_str().expect("utf-8"),
+        "--out",
+        sheet.to_str().expect("utf-8"),
+    ]);
+    let img = image::open(&sheet).expect("PNG");
+    assert_eq!(
+        (img.width(), img.height()),
+        (6 * 320, 2 * 180),
+        "8 tiles, 6 a row"
+    );
+}
+
+#[test]
+fn randomizing_refuses_a_share_outside_0_to_1_and_an_empty_photo_folder() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_towernav-sim"))
+            .args(args)
+            .output()
+            .expect("run");
+        assert!(!out.status.success(), "{args:?} should fail");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let out = dir.path().join("ds");
+    let out = out.to_str().expect("utf-8");
+    let err = run(&["dataset", "--out", out, "--randomize", "1.5"]);
+    assert!(err.contains("--randomize") && err.contains("1.5"), "{err}");
+    let empty = dir.path().join("empty");
+    std::fs::create_dir_all(&empty).expect("mkdir");
+    let err = run(&[
+        "dataset",
+        "--out",
+        out,
+        "--randomize",
+        "0.5",
+        "--backgrounds",
+        empty.to_str().expect("utf-8"),
+    ]);
+    assert!(err.contains("empty") && err.contains("no .jpg"), "{err}");
+}

@@ -215,3 +215,90 @@ fn the_shipped_model_finds_the_towers_in_rendered_frames() {
     }
     assert!(checked >= 8, "only {checked} towers were checked");
 }
+
+/// A tiny labelled folder as users keep one (images/, labels/, classes.txt)
+/// and a tower-free one, scored through the stand-in detector, whose one box
+/// on a white frame is known: the answers are known too.
+#[test]
+fn real_image_evaluation_scores_a_labelled_fixture_with_known_answers() {
+    use towernav_eval::cmd::real_eval::{RealEvalOptions, evaluate};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let labelled = dir.path().join("labelled");
+    for sub in ["images", "labels"] {
+        std::fs::create_dir_all(labelled.join(sub)).expect("mkdir");
+    }
+    std::fs::write(labelled.join("classes.txt"), "lattice\ntubular\nwooden\n").expect("names");
+    let white = RgbImage::from_pixel(128, 64, Rgb([255, 255, 255]));
+    let black = RgbImage::from_pixel(128, 64, Rgb([0, 0, 0]));
+    white.save(labelled.join("images/white.png")).expect("png");
+    black.save(labelled.join("images/black.png")).expect("png");
+    // The white frame's lattice tower is where the stand-in boxes it; the
+    // black frame's tubular tower is missed; its wooden pole is don't care.
+    std::fs::write(labelled.join("labels/white.txt"), "0 0.5 0.5 0.125 0.5\n").expect("label");
+    std::fs::write(
+        labelled.join("labels/black.txt"),
+        "1 0.25 0.5 0.1 0.5\n2 0.8 0.5 0.05 0.5\n",
+    )
+    .expect("label");
+    let negatives = dir.path().join("negatives");
+    std::fs::create_dir_all(negatives.join("sub")).expect("mkdir");
+    white.save(negatives.join("a.png")).expect("png");
+    black.save(negatives.join("sub/b.png")).expect("png");
+    black.save(negatives.join("c.png")).expect("png");
+    let mut detector_options = DetectorOptions::default();
+    detector_options.post.min_score = 0.001;
+    let eval = evaluate(
+        &fixture("fake-v8-towers.onnx"),
+        None,
+        &detector_options,
+        &RealEvalOptions {
+            images: Some(labelled),
+            negatives: Some(negatives),
+            dont_care: vec!["wooden".into()],
+            at_score: 0.25,
+            ..RealEvalOptions::default()
+        },
+    )
+    .expect("evaluates");
+    let s = eval.labelled.expect("labelled scores");
+    assert_eq!(s.images, 2);
+    assert_eq!(s.any_class.labels, 2);
+    assert!((s.any_class.precision - 1.0).abs() < 1e-9, "{s:?}");
+    assert!((s.any_class.recall - 0.5).abs() < 1e-9, "{s:?}");
+    let names: Vec<&str> = s.per_class.iter().map(|r| r.class.as_str()).collect();
+    assert_eq!(names, ["lattice", "tubular"]);
+    assert!((s.per_class[0].recall - 1.0).abs() < 1e-9 && s.per_class[1].recall == 0.0);
+    assert!(s.typed.is_none(), "A-D are not the folder's names");
+    let n = eval.negatives.expect("negative scores");
+    assert_eq!((n.images, n.with_a_false_box), (3, 1), "{n:?}");
+}
+
+#[test]
+fn real_image_evaluation_names_a_bad_label_file_and_line() {
+    use towernav_eval::cmd::real_eval::{RealEvalOptions, evaluate};
+    let dir = tempfile::tempdir().expect("tempdir");
+    for sub in ["images", "labels"] {
+        std::fs::create_dir_all(dir.path().join(sub)).expect("mkdir");
+    }
+    RgbImage::from_pixel(32, 32, Rgb([9, 9, 9]))
+        .save(dir.path().join("images/x.jpg"))
+        .expect("jpg");
+    std::fs::write(
+        dir.path().join("labels/x.txt"),
+        "0 0.5 0.5 0.2 0.2\n0 0.5 0.5\n",
+    )
+    .expect("label");
+    let err = evaluate(
+        &fixture("fake-v8-towers.onnx"),
+        None,
+        &DetectorOptions::default(),
+        &RealEvalOptions {
+            images: Some(dir.path().to_path_buf()),
+            at_score: 0.25,
+            ..RealEvalOptions::default()
+        },
+    )
+    .expect_err("refused")
+    .to_string();
+    assert!(err.contains("x.txt") && err.contains("line 2"), "{err}");
+}

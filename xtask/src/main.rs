@@ -45,6 +45,18 @@ enum Task {
         /// earlier run is kept as `run-stage<N>`); no weights are downloaded.
         #[arg(long)]
         continue_run: bool,
+        /// Share of the rendered dataset's frames that are domain-randomized.
+        #[arg(long, default_value_t = 0.75)]
+        randomize: f64,
+        /// Folders of real tower-free photos: backgrounds and negatives (repeatable).
+        #[arg(long)]
+        backgrounds: Vec<PathBuf>,
+        /// Train the detector only; keep the shipped type classifier.
+        #[arg(long)]
+        detector_only: bool,
+        /// Train from a random start instead of fine-tuning models/towers.pt.
+        #[arg(long)]
+        from_scratch: bool,
     },
     /// INT8 versions of the finished training run's two models (ONNX Runtime's quantizer).
     Quantize,
@@ -149,6 +161,10 @@ fn main() -> anyhow::Result<()> {
             worlds,
             frames_per_world,
             continue_run,
+            randomize,
+            backgrounds,
+            detector_only,
+            from_scratch,
         } => train::train(
             &root,
             &train::TrainOptions {
@@ -158,6 +174,10 @@ fn main() -> anyhow::Result<()> {
                 worlds,
                 frames_per_world,
                 continue_run,
+                randomize,
+                backgrounds,
+                detector_only,
+                from_scratch,
             },
         ),
     }

@@ -4,16 +4,20 @@
 //!    Ultralytics on the CPU, from the Python package index) into `.venv-train/`;
 //! 2. renders the simulator's YOLO dataset (`towernav-sim dataset`) into
 //!    `target/train/dataset` unless it is there;
+//!    (with `--randomize` of its frames domain-randomized, over the real
+//!    tower-free photos of `--backgrounds`);
 //! 3. runs `training/train.py`, detached, logging to `target/train/train.log`:
-//!    it trains from scratch within a wall-clock budget, resumes from its last
+//!    it fine-tunes the shipped detector (`models/towers.pt`; `--from-scratch`
+//!    starts over) within a wall-clock budget, resumes from its last
 //!    checkpoint when run again after an interruption, exports ONNX and evaluates;
 //! 4. then `training/train_types.py`: the tower-type classifier the edge runs
 //!    on each box's full-resolution crop (about 35 minutes), into `target/train/types`;
 //! 5. then `training/quantize.py`: INT8 versions of both (`cargo xtask quantize`
 //!    alone redoes this step).
 //!
-//! `--foreground` waits for it; `--ship` copies the exported models into
-//! `models/` once a run has finished.
+//! `--foreground` waits for it; `--ship` copies the exported models and the
+//! detector's checkpoint into `models/` once a run has finished, so the next
+//! stage starts from it on any machine. `--detector-only` skips the classifier.
 
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
@@ -30,6 +34,10 @@ pub struct TrainOptions {
     pub worlds: u32,
     pub frames_per_world: u32,
     pub continue_run: bool,
+    pub randomize: f64,
+    pub backgrounds: Vec<PathBuf>,
+    pub detector_only: bool,
+    pub from_scratch: bool,
 }
 
 pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
@@ -60,10 +68,21 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
                 &options.frames_per_world.to_string(),
                 "--seed",
                 "0",
-            ]))?;
+                "--randomize",
+                &options.randomize.to_string(),
+            ])
+            .args(
+                options
+                    .backgrounds
+                    .iter()
+                    .flat_map(|b| [Path::new("--backgrounds"), b.as_path()]),
+            ))?;
     }
+    let shipped = root.join("models").join("towers.pt");
     let init = if options.continue_run {
         Some(archive_finished_run(&work, &run_dir)?)
+    } else if !options.from_scratch && shipped.exists() {
+        Some(shipped)
     } else {
         None
     };
@@ -72,9 +91,15 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     // threads that sleep instead of spinning: the run soaks up idle cores
     // without slowing a build beside it.
     let types_dir = work.join("types");
+    // With --detector-only the classifier step is `true` and the quantizer gets the detector alone.
+    let classifier_step = if options.detector_only {
+        r#"true"#
+    } else {
+        r#""$1" "$7" --data "$3" --out "$8""#
+    };
     let mut cmd = Command::new("nice");
     cmd.args(["-n", "19", "sh", "-c"])
-        .arg(r#""$1" "$2" --data "$3" --out "$4" --hours "$5" ${6:+--init "$6"} && "$1" "$7" --data "$3" --out "$8" && py="$1" q="$9" && shift 9 && "$py" "$q" "$@""#)
+        .arg(format!(r#""$1" "$2" --data "$3" --out "$4" --hours "$5" ${{6:+--init "$6"}} && {classifier_step} && py="$1" q="$9" && shift 9 && "$py" "$q" "$@""#))
         .arg("sh")
         .arg(&python)
         .arg(root.join("training").join("train.py"))
@@ -86,7 +111,11 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         .arg(&types_dir)
         .arg(root.join("training").join("quantize.py"))
         // The quantizer's own arguments, "$@" after `shift 9`.
-        .args(quantize_args(&work))
+        .args(if options.detector_only {
+            quantize_args(&work)[..4].to_vec()
+        } else {
+            quantize_args(&work)
+        })
         .env("OMP_WAIT_POLICY", "PASSIVE")
         .current_dir(root);
     if options.foreground {
@@ -213,6 +242,10 @@ fn ship(root: &Path, run_dir: &Path, types_dir: &Path) -> anyhow::Result<()> {
         (onnx, "towers.onnx"),
         (summary, "towers.training.json"),
         (run_dir.join("towers-int8.onnx"), "towers-int8.onnx"),
+        (
+            run_dir.join("train").join("weights").join("best.pt"),
+            "towers.pt",
+        ),
         (types_dir.join("tower-types.onnx"), "tower-types.onnx"),
         (types_dir.join("summary.json"), "tower-types.training.json"),
         (

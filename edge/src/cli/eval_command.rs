@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use clap::Subcommand;
 use towernav_eval::cmd::detector_eval::DetectorEvalOptions;
+use towernav_eval::cmd::real_eval::RealEvalOptions;
 
 use crate::cli::detector_args::DetectorArgs;
 
@@ -25,11 +26,31 @@ pub enum EvalCommand {
         reid: Option<PathBuf>,
     },
     /// The paper's Table 1 for a YOLO model: precision, recall, mAP50, mAP50-95 per
-    /// class, recall by box height, and latency, on held-out simulated worlds.
+    /// class, recall by box height, and latency, on held-out simulated worlds;
+    /// with --images or --negatives, on real photographs instead.
     #[command(name = "eval-detector")]
     Detector {
         #[command(flatten)]
         detector: DetectorArgs,
+        /// A labelled folder of real images: an Ultralytics dataset (data.yaml)
+        /// or images/ with labels/ (or labels_yolo/). Scored class-agnostic,
+        /// overall and per labelled class, at --min-score.
+        #[arg(long)]
+        images: Option<PathBuf>,
+        /// A folder of real tower-free images (and its subfolders): the share
+        /// that gets a box at --min-score.
+        #[arg(long)]
+        negatives: Option<PathBuf>,
+        /// The data.yaml split to score (default: test, else val).
+        #[arg(long)]
+        split: Option<String>,
+        /// The folder's class names, in id order, replacing its own
+        /// (data.yaml's names or classes.txt).
+        #[arg(long, value_delimiter = ',')]
+        names: Option<Vec<String>>,
+        /// A labelled class that is neither a hit nor a false positive (repeatable).
+        #[arg(long)]
+        dont_care: Vec<String>,
         /// Held-out worlds to render (drawn from --seed; training used seed 0).
         #[arg(long, default_value_t = 10)]
         worlds: u64,
@@ -65,6 +86,11 @@ impl EvalCommand {
             }
             Self::Detector {
                 detector,
+                images,
+                negatives,
+                split,
+                names,
+                dont_care,
                 worlds,
                 frames_per_world,
                 seed,
@@ -83,6 +109,23 @@ impl EvalCommand {
                 detector_options.post.min_score = 0.001;
                 detector_options.post.types_per_box = usize::from(*types_per_box);
                 let section = detector.section();
+                if images.is_some() || negatives.is_some() {
+                    let real = RealEvalOptions {
+                        images: images.clone(),
+                        negatives: negatives.clone(),
+                        split: split.clone(),
+                        names: names.clone(),
+                        dont_care: dont_care.clone(),
+                        at_score: detector.min_score,
+                    };
+                    return towernav_eval::cmd::real_eval::write_all(
+                        &section.model,
+                        section.type_model(),
+                        &detector_options,
+                        &real,
+                        out,
+                    );
+                }
                 towernav_eval::cmd::detector_eval::write_all(
                     &section.model,
                     section.type_model(),

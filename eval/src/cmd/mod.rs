@@ -6,4 +6,5 @@ pub mod demo_plots;
 pub mod detector_eval;
 pub mod loc_eval;
 pub mod loc_plots;
+pub mod real_eval;
 pub mod tracking_eval;

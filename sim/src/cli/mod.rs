@@ -1,6 +1,8 @@
 //! The command-line shell around the simulator: files, images, progress bars.
 
+pub mod contact_sheet;
 pub mod dataset;
 pub mod flight_cmd;
 pub mod mot;
 pub mod overlay;
+pub mod photos;

@@ -4,6 +4,7 @@
 use nalgebra::Isometry3;
 use towernav_geometry::{CameraMount, Intrinsics, PinholeCamera};
 
+use super::Backdrop;
 use super::conditions::Conditions;
 use super::textures::{CloudSheet, MipTexture, unpack};
 
@@ -154,6 +155,45 @@ fn draw_full(
             dx += sx;
             dy += sy;
             dz += sz;
+        }
+    }
+}
+
+/// Put `backdrop`'s photo where the ground is (every pixel whose ray points
+/// down), hazed by the ground's distance like the drawn one; or over the
+/// whole frame, as it is.
+pub fn paste(
+    rgba: &mut [u8],
+    camera: &PinholeCamera,
+    world_from_camera: &Isometry3<f64>,
+    conditions: &Conditions,
+    backdrop: &Backdrop<'_>,
+) {
+    let k = &camera.intrinsics;
+    let (w, h) = (k.width as usize, k.height as usize);
+    let photo = backdrop.photo;
+    if photo.width() as usize != w || photo.height() as usize != h {
+        return;
+    }
+    let grid = camera.ray_grid(world_from_camera);
+    let ez = world_from_camera.translation.vector.z.max(0.1);
+    let haze = conditions.haze_colour().map(|c| c * 255.0);
+    let src = photo.as_raw();
+    for y in 0..h {
+        for x in 0..w {
+            let d = grid.at_origin + grid.per_v * (y as f64 + 0.5) + grid.per_u * (x as f64 + 0.5);
+            let keep = if backdrop.whole_frame {
+                1.0
+            } else if d.z < -1e-6 {
+                conditions.transmittance(ez / -d.z * d.norm())
+            } else {
+                continue;
+            };
+            let (i, o) = ((y * w + x) * 3, (y * w + x) * 4);
+            for c in 0..3 {
+                let v = f32::from(src[i + c]) * keep + haze[c] * (1.0 - keep);
+                rgba[o + c] = v.clamp(0.0, 255.0) as u8;
+            }
         }
     }
 }

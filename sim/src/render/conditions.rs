@@ -20,6 +20,47 @@ pub struct Conditions {
     pub shutter_s: f64,
     /// Draw trees, buildings and poles.
     pub distractors: bool,
+    /// How the towers' steel looks.
+    pub tower_paint: TowerPaint,
+}
+
+/// Finishes seen on real lattice towers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TowerPaint {
+    /// Bare galvanised steel, light grey.
+    #[default]
+    Galvanised,
+    /// Dark grey or green paint; near black against a bright sky.
+    Dark,
+    /// Aviation marking: red and white bands.
+    RedWhite,
+    /// Dull, rust-brown weathered steel.
+    Weathered,
+}
+
+impl TowerPaint {
+    pub const ALL: [Self; 4] = [
+        Self::Galvanised,
+        Self::Dark,
+        Self::RedWhite,
+        Self::Weathered,
+    ];
+
+    /// The colour of a member of base colour `galvanised` in band `band`
+    /// (counted up the tower in sevenths).
+    pub fn colour(self, galvanised: [f32; 3], band: u32) -> [f32; 3] {
+        match self {
+            Self::Galvanised => galvanised,
+            Self::Dark => galvanised.map(|c| c * 0.3),
+            Self::RedWhite if band.is_multiple_of(2) => [0.78, 0.16, 0.12],
+            Self::RedWhite => [0.90, 0.90, 0.88],
+            Self::Weathered => [
+                galvanised[0] * 0.85,
+                galvanised[1] * 0.68,
+                galvanised[2] * 0.55,
+            ],
+        }
+    }
 }
 
 impl Default for Conditions {
@@ -34,6 +75,7 @@ impl Default for Conditions {
             noise_sigma: 2.0,
             shutter_s: 0.004,
             distractors: true,
+            tower_paint: TowerPaint::Galvanised,
         }
     }
 }
@@ -51,7 +93,35 @@ impl Conditions {
             noise_sigma: rng.random_range(0.5..5.0),
             shutter_s: rng.random_range(0.0..0.012),
             distractors: true,
+            tower_paint: TowerPaint::Galvanised,
         }
+    }
+
+    /// Wider variety for domain randomization, facing `view_yaw` (ENU): one
+    /// of midday, dawn or dusk, backlit (the sun low ahead: dark towers on a
+    /// bright sky), overcast, or hazy; exposure from under to over; any paint.
+    pub fn randomized(rng: &mut impl Rng, view_yaw: f64) -> Self {
+        let mut c = Self::random(rng);
+        c.exposure = rng.random_range(0.45..1.8);
+        c.tower_paint = TowerPaint::ALL[rng.random_range(0..TowerPaint::ALL.len())];
+        match rng.random_range(0..5) {
+            0 => {}
+            1 => c.sun_elevation = rng.random_range(0.02..0.18),
+            2 => {
+                c.sun_azimuth = view_yaw + rng.random_range(-0.5..0.5);
+                c.sun_elevation = rng.random_range(0.05..0.5);
+                c.exposure = rng.random_range(0.9..1.8);
+                if c.tower_paint == TowerPaint::Galvanised {
+                    c.tower_paint = TowerPaint::Dark;
+                }
+            }
+            3 => {
+                c.cloud_cover = rng.random_range(0.85..1.0);
+                c.sun_elevation = rng.random_range(0.1..0.6);
+            }
+            _ => c.visibility_m = rng.random_range(250.0..900.0),
+        }
+        c
     }
 
     /// No haze, noise, clouds or blur, no distractors: for checking geometry.

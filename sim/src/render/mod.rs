@@ -6,7 +6,9 @@
 //! painted far to near; the sensor then adds blur, exposure and noise.
 
 mod background;
+mod clutter;
 pub mod conditions;
+pub mod lens;
 mod post;
 mod scene;
 mod textures;
@@ -15,7 +17,7 @@ use image::RgbImage;
 use tiny_skia::Pixmap;
 use towernav_geometry::{PinholeCamera, Pose};
 
-pub use conditions::Conditions;
+pub use conditions::{Conditions, TowerPaint};
 use scene::{Scene, Span, TowerGeometry};
 
 use crate::world::{Distractor, World};
@@ -29,6 +31,14 @@ pub struct Renderer {
     ground: textures::MipTexture,
     clouds: textures::CloudSheet,
     noise: post::NoiseTable,
+}
+
+/// A real photograph, already the frame's size, to draw the scene over.
+#[derive(Debug, Clone, Copy)]
+pub struct Backdrop<'a> {
+    pub photo: &'a RgbImage,
+    /// Cover the sky too, not only the ground below the horizon.
+    pub whole_frame: bool,
 }
 
 /// Reusable per-frame buffers, so a flight renders without reallocating.
@@ -79,6 +89,20 @@ impl Renderer {
         attitude_rates: (f64, f64, f64),
         noise_seed: u64,
     ) {
+        self.render_over(buffers, pose, conditions, attitude_rates, noise_seed, None);
+    }
+
+    /// [`Renderer::render_into`] with a real photograph behind the scene
+    /// instead of the drawn ground (or sky and ground).
+    pub fn render_over(
+        &self,
+        buffers: &mut FrameBuffers,
+        pose: &Pose,
+        conditions: &Conditions,
+        attitude_rates: (f64, f64, f64),
+        noise_seed: u64,
+        backdrop: Option<Backdrop<'_>>,
+    ) {
         let k = &self.camera.intrinsics;
         let world_from_camera = self.camera.world_from_camera(pose);
         background::draw(
@@ -90,6 +114,15 @@ impl Renderer {
             &self.ground,
             &self.clouds,
         );
+        if let Some(backdrop) = backdrop {
+            background::paste(
+                buffers.pixmap.data_mut(),
+                &self.camera,
+                &world_from_camera,
+                conditions,
+                &backdrop,
+            );
+        }
         let scene = Scene {
             camera: &self.camera,
             camera_from_world: world_from_camera.inverse(),

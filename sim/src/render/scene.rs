@@ -5,7 +5,7 @@ use nalgebra::{Isometry3, Point2, Point3, Vector3};
 use tiny_skia::{FillRule, LineCap, Paint, PathBuilder, Pixmap, Shader, Stroke, Transform};
 use towernav_geometry::PinholeCamera;
 
-use super::conditions::Conditions;
+use super::conditions::{Conditions, TowerPaint};
 use crate::tower_model::MemberKind;
 use crate::world::{Distractor, World};
 
@@ -176,26 +176,39 @@ impl Scene<'_> {
     fn draw_tower(&self, pixmap: &mut Pixmap, tower: &TowerGeometry) {
         let depth = self.depth(&tower.axis_mid_in_world);
         let distance = depth.max(1.0);
+        let paint = self.conditions.tower_paint;
+        let height = (2.0 * tower.axis_mid_in_world.z).max(1.0);
+        let bands: u32 = if paint == TowerPaint::RedWhite { 2 } else { 1 };
         for kind in MemberKind::ALL {
-            let segments = tower
-                .members
-                .iter()
-                .filter(|(k, _, _)| *k == kind)
-                .filter_map(|(_, a, b)| self.segment(a, b));
-            let rgb = match kind {
+            let galvanised = match kind {
                 MemberKind::Leg => [0.52, 0.54, 0.56],
                 MemberKind::Brace => [0.62, 0.64, 0.66],
                 MemberKind::Arm => [0.58, 0.60, 0.62],
                 MemberKind::Insulator => [0.20, 0.24, 0.30],
             };
-            self.stroke(
-                pixmap,
-                segments,
-                rgb,
-                kind.width_m(),
-                depth.max(2.0),
-                distance,
-            );
+            for parity in 0..bands {
+                let band_of = |a: &Point3<f64>, b: &Point3<f64>| {
+                    ((a.z + b.z) / 2.0 / height * 7.0).max(0.0) as u32
+                };
+                let segments = tower
+                    .members
+                    .iter()
+                    .filter(|(k, a, b)| *k == kind && (bands == 1 || band_of(a, b) % 2 == parity))
+                    .filter_map(|(_, a, b)| self.segment(a, b));
+                let rgb = if kind == MemberKind::Insulator {
+                    galvanised
+                } else {
+                    paint.colour(galvanised, parity)
+                };
+                self.stroke(
+                    pixmap,
+                    segments,
+                    rgb,
+                    kind.width_m(),
+                    depth.max(2.0),
+                    distance,
+                );
+            }
         }
     }
 
@@ -217,6 +230,13 @@ impl Scene<'_> {
     fn draw_distractor(&self, pixmap: &mut Pixmap, d: &Distractor) {
         let depth = self.depth(&d.foot_in_world());
         if depth < NEAR_M {
+            return;
+        }
+        if let Some(groups) = super::clutter::groups(d) {
+            for g in groups {
+                let segments = g.members.iter().filter_map(|(a, b)| self.segment(a, b));
+                self.stroke(pixmap, segments, g.rgb, g.width_m, depth, depth);
+            }
             return;
         }
         match *d {
@@ -275,6 +295,7 @@ impl Scene<'_> {
                 .filter_map(|(a, b)| self.segment(&a, &b));
                 self.stroke(pixmap, pole, [0.42, 0.36, 0.30], 0.3, depth, depth);
             }
+            _ => {}
         }
     }
 

@@ -1,0 +1,232 @@
+//! `towernav-edge eval-detector --images DIR [--negatives DIR]`: the
+//! detector on real labelled photographs and on real tower-free frames.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use comfy_table::Table;
+use image::{DynamicImage, ImageDecoder, ImageReader};
+use serde::Serialize;
+use towernav_onnx::yolo::{DetectorOptions, YoloDetector};
+
+use crate::image_folder::{ImageFolder, images_under};
+use crate::map_eval::{Labelled, Scored};
+use crate::progress::bar;
+use crate::real_score::{
+    FolderScore, NegativeScore, Row, ScoredImage, score_folder, score_negatives,
+};
+
+#[derive(Debug, Clone, Default)]
+pub struct RealEvalOptions {
+    pub images: Option<PathBuf>,
+    pub negatives: Option<PathBuf>,
+    /// The data.yaml split to score (default: test, else val).
+    pub split: Option<String>,
+    /// Class names replacing the folder's own.
+    pub names: Option<Vec<String>>,
+    /// Classes whose towers are neither hits nor false positives.
+    pub dont_care: Vec<String>,
+    /// The daemon's threshold: P, R and the false-box rate are read here.
+    pub at_score: f32,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RealEval {
+    pub model: String,
+    pub model_names: Vec<String>,
+    pub images_folder: Option<String>,
+    pub labelled: Option<FolderScore>,
+    pub negatives_folder: Option<String>,
+    pub negatives: Option<NegativeScore>,
+    /// Per image, pre-processing, inference and post-processing, ms.
+    pub latency_ms_mean: f64,
+}
+
+/// Decode `path` upright (its EXIF orientation applied, as labelling tools show it).
+pub fn load_upright(path: &Path) -> anyhow::Result<image::RgbImage> {
+    let decoder = ImageReader::open(path)
+        .with_context(|| format!("opening {}", path.display()))?
+        .with_guessed_format()
+        .with_context(|| format!("reading {}", path.display()))?
+        .into_decoder()
+        .with_context(|| format!("decoding {}", path.display()))?;
+    let mut decoder = decoder;
+    let orientation = decoder
+        .orientation()
+        .with_context(|| format!("reading the orientation of {}", path.display()))?;
+    let mut image = DynamicImage::from_decoder(decoder)
+        .with_context(|| format!("decoding {}", path.display()))?;
+    image.apply_orientation(orientation);
+    Ok(image.to_rgb8())
+}
+
+pub fn evaluate(
+    model: &Path,
+    type_model: Option<&Path>,
+    detector_options: &DetectorOptions,
+    options: &RealEvalOptions,
+) -> anyhow::Result<RealEval> {
+    anyhow::ensure!(
+        options.images.is_some() || options.negatives.is_some(),
+        "give --images, --negatives or both"
+    );
+    let mut detector = YoloDetector::load_with_types(model, type_model, detector_options)?;
+    let model_names: Vec<String> = detector.info().classes.clone();
+    let mut spent = 0.0;
+    let mut runs = 0usize;
+    let mut detect = |path: &Path, seq: u64| -> anyhow::Result<(Vec<Scored>, (f64, f64))> {
+        let frame = load_upright(path)?;
+        let t0 = Instant::now();
+        let dets = detector
+            .detect(&frame, seq)
+            .with_context(|| format!("detecting in {}", path.display()))?;
+        spent += t0.elapsed().as_secs_f64() * 1e3;
+        runs += 1;
+        let boxes = dets
+            .iter()
+            .map(|d| Scored {
+                bbox: d.bbox,
+                class: d.tower_type.index(),
+                score: d.score as f32,
+            })
+            .collect();
+        Ok((boxes, (f64::from(frame.width()), f64::from(frame.height()))))
+    };
+    let labelled = match &options.images {
+        Some(dir) => {
+            let folder =
+                ImageFolder::open(dir, options.split.as_deref(), options.names.as_deref())?;
+            let dont_care = options
+                .dont_care
+                .iter()
+                .map(|n| {
+                    folder.names.iter().position(|f| f == n).with_context(|| {
+                        format!(
+                            "--dont-care {n}: {} names {:?}",
+                            dir.display(),
+                            folder.names
+                        )
+                    })
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            let progress = bar(folder.images.len() as u64, "eval-detector");
+            let mut scored = Vec::with_capacity(folder.images.len());
+            for (seq, item) in folder.images.iter().enumerate() {
+                let (boxes, (w, h)) = detect(&item.image, seq as u64)?;
+                let labels = item
+                    .labels
+                    .iter()
+                    .map(|l| Labelled {
+                        bbox: l.pixels(w, h),
+                        class: l.class,
+                    })
+                    .collect();
+                scored.push(ScoredImage { labels, boxes });
+                progress.inc(1);
+            }
+            progress.finish_and_clear();
+            Some(score_folder(
+                &scored,
+                &folder.names,
+                &model_names,
+                &dont_care,
+                options.at_score,
+            ))
+        }
+        None => None,
+    };
+    let negatives = match &options.negatives {
+        Some(dir) => {
+            let paths = images_under(dir)?;
+            let progress = bar(paths.len() as u64, "negatives");
+            let mut boxes = Vec::with_capacity(paths.len());
+            for (seq, path) in paths.iter().enumerate() {
+                boxes.push(detect(path, seq as u64)?.0);
+                progress.inc(1);
+            }
+            progress.finish_and_clear();
+            Some(score_negatives(&boxes, options.at_score))
+        }
+        None => None,
+    };
+    Ok(RealEval {
+        model: model.display().to_string(),
+        model_names,
+        images_folder: options.images.as_ref().map(|p| p.display().to_string()),
+        labelled,
+        negatives_folder: options.negatives.as_ref().map(|p| p.display().to_string()),
+        negatives,
+        latency_ms_mean: spent / runs.max(1) as f64,
+    })
+}
+
+fn rows_table(rows: &[&Row]) -> Table {
+    let mut table = Table::new();
+    table.set_header(["class", "labels", "P", "R", "mAP50", "mAP50-95"]);
+    for r in rows {
+        table.add_row([
+            r.class.clone(),
+            r.labels.to_string(),
+            format!("{:.3}", r.precision),
+            format!("{:.3}", r.recall),
+            format!("{:.3}", r.map50),
+            format!("{:.3}", r.map50_95),
+        ]);
+    }
+    table
+}
+
+/// The command: tables on stdout, the numbers as `real-eval.json` in `out`.
+pub fn write_all(
+    model: &Path,
+    type_model: Option<&Path>,
+    detector_options: &DetectorOptions,
+    options: &RealEvalOptions,
+    out: &Path,
+) -> anyhow::Result<()> {
+    let eval = evaluate(model, type_model, detector_options, options)?;
+    println!(
+        "Detector {} (classes {:?}) on real images\n",
+        eval.model, eval.model_names
+    );
+    if let (Some(dir), Some(s)) = (&eval.images_folder, &eval.labelled) {
+        let care = if s.dont_care.is_empty() {
+            String::new()
+        } else {
+            format!("; don't care: {}", s.dont_care.join(", "))
+        };
+        println!(
+            "{dir}: {} images, boxes matched whatever their class (P and R at score {}{care}):",
+            s.images, options.at_score
+        );
+        let mut rows: Vec<&Row> = s.per_class.iter().collect();
+        rows.push(&s.any_class);
+        println!("{}\n", rows_table(&rows));
+        if let Some(typed) = &s.typed {
+            println!(
+                "The model's classes are the folder's; typed:\n{}\n",
+                rows_table(&typed.iter().collect::<Vec<_>>())
+            );
+        }
+    }
+    if let (Some(dir), Some(n)) = (&eval.negatives_folder, &eval.negatives) {
+        println!(
+            "{dir}: {} of {} tower-free images ({:.1} %) got a box scoring {} or more\n",
+            n.with_a_false_box,
+            n.images,
+            100.0 * n.rate,
+            n.at_score
+        );
+    }
+    println!(
+        "Mean time per image, pre + inference + post: {:.1} ms",
+        eval.latency_ms_mean
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let path = out.join("real-eval.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&eval)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
+}
