@@ -302,3 +302,62 @@ fn real_image_evaluation_names_a_bad_label_file_and_line() {
     .to_string();
     assert!(err.contains("x.txt") && err.contains("line 2"), "{err}");
 }
+
+/// Real photographs of lattice towers, read in place from the project's
+/// sibling `shared/real/` (never copied in): the daemon's shipped models, at
+/// the daemon's threshold, box each lattice tower labelled there (IoU >= 0.5).
+/// Where that folder is absent, the test says so and passes.
+#[test]
+fn the_shipped_model_finds_the_lattice_towers_of_real_photographs() {
+    use towernav_eval::cmd::real_eval::load_upright;
+    use towernav_eval::image_folder::ImageFolder;
+    let real = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/real");
+    if !real.is_dir() {
+        eprintln!("skipped: no {} here", real.display());
+        return;
+    }
+    let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models");
+    let mut detector = YoloDetector::load_with_types(
+        &models.join("towers-int8.onnx"),
+        Some(&models.join("tower-types-int8.onnx")),
+        &DetectorOptions::default(),
+    )
+    .expect("the shipped models load");
+    let names: Vec<String> = ["tower_lattice", "tower_tucohy", "tower_wooden"]
+        .map(String::from)
+        .to_vec();
+    let mut checked = 0;
+    for (folder, image) in REAL_LATTICE_FIXTURES {
+        let folder =
+            ImageFolder::open(&real.join(folder), None, Some(&names)).expect("the folder reads");
+        let item = folder
+            .images
+            .iter()
+            .find(|i| i.image.file_name().is_some_and(|n| n == *image))
+            .expect("the fixture image is there");
+        let frame = load_upright(&item.image).expect("decodes");
+        let (w, h) = (f64::from(frame.width()), f64::from(frame.height()));
+        let dets = detector.detect(&frame, 0).expect("runs");
+        for label in item.labels.iter().filter(|l| l.class == 0) {
+            let want = label.pixels(w, h);
+            let best = dets
+                .iter()
+                .map(|d| (d.bbox.iou(&want), d.score))
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            assert!(
+                best.is_some_and(|(iou, _)| iou >= 0.5),
+                "{image}: the lattice tower at {want:?} is not boxed (best IoU and score {best:?} of {} boxes)",
+                dets.len()
+            );
+            checked += 1;
+        }
+    }
+    assert!(
+        checked >= REAL_LATTICE_FIXTURES.len(),
+        "{checked} towers checked"
+    );
+}
+
+/// (folder under shared/real, image) pairs with a lattice tower in full view.
+const REAL_LATTICE_FIXTURES: &[(&str, &str)] =
+    &[("ttpla_a", "34_135.jpg"), ("norway_uav", "199.jpg")];

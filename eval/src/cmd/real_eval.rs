@@ -165,13 +165,21 @@ fn rows_table(rows: &[&Row]) -> Table {
     let mut table = Table::new();
     table.set_header(["class", "labels", "P", "R", "mAP50", "mAP50-95"]);
     for r in rows {
+        // A class with no labels here has no recall or precision to speak of.
+        let f = |v: f64| {
+            if r.labels == 0 {
+                "-".to_string()
+            } else {
+                format!("{v:.3}")
+            }
+        };
         table.add_row([
             r.class.clone(),
             r.labels.to_string(),
-            format!("{:.3}", r.precision),
-            format!("{:.3}", r.recall),
-            format!("{:.3}", r.map50),
-            format!("{:.3}", r.map50_95),
+            f(r.precision),
+            f(r.recall),
+            f(r.map50),
+            f(r.map50_95),
         ]);
     }
     table

@@ -42,14 +42,17 @@ pub fn write(out: &Path, count: usize, seed: u64, backgrounds: &[PathBuf]) -> an
             &mut rng,
             &mut scratch,
         );
-        let height = f64::from(buffers.image.height());
+        let (width, height) = (
+            f64::from(buffers.image.width()),
+            f64::from(buffers.image.height()),
+        );
         let labelled: Vec<TruthBox> = shot
             .truth
             .boxes
             .iter()
             .filter(|b| b.labelled())
             .map(|b| TruthBox {
-                bbox: shot.lens.skew_box(&b.bbox, height),
+                bbox: shot.lens.map_box(&b.bbox, width, height),
                 ..b.clone()
             })
             .collect();

@@ -293,7 +293,7 @@ fn write_labels(
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
     );
     for b in shot.truth.boxes.iter().filter(|b| b.labelled()) {
-        let bbox = shot.lens.skew_box(&b.bbox, ih).clipped(iw, ih);
+        let bbox = shot.lens.map_box(&b.bbox, iw, ih).clipped(iw, ih);
         writeln!(
             file,
             "{} {:.6} {:.6} {:.6} {:.6}",

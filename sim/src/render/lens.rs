@@ -1,7 +1,8 @@
 //! What a cheap real lens and sensor add on top of the rendered image, for
-//! training sets: colour casts, vignetting, defocus, colour fringes, rolling-
-//! shutter skew and flare. Each is a pure function of the image and its
-//! settings; boxes move with the skew through [`LensEffects::skew_box`].
+//! training sets: colour casts, vignetting, defocus, colour fringes, radial
+//! distortion, rolling-shutter skew and flare. Each is a pure function of the
+//! image and its settings; boxes move with the distortion and the skew
+//! through [`LensEffects::map_box`].
 
 use image::RgbImage;
 use rand::Rng;
@@ -20,6 +21,9 @@ pub struct LensEffects {
     pub chroma_px: f32,
     /// Horizontal shift of the bottom row against the top one (a pan during readout), pixels.
     pub skew_px: f32,
+    /// Radial distortion: an output pixel at normalized radius r (1 at the
+    /// corners) shows the scene at r (1 + k r^2); negative is barrel.
+    pub distortion: f32,
     /// A bright glow: centre (normalized 0..1) and strength (0..1).
     pub flare: Option<(f32, f32, f32)>,
 }
@@ -32,6 +36,7 @@ impl Default for LensEffects {
             defocus_px: 0,
             chroma_px: 0.0,
             skew_px: 0.0,
+            distortion: 0.0,
             flare: None,
         }
     }
@@ -67,6 +72,11 @@ impl LensEffects {
             } else {
                 0.0
             },
+            distortion: if rng.random_bool(0.3) {
+                rng.random_range(-0.12..0.06)
+            } else {
+                0.0
+            },
             flare: rng.random_bool(0.15).then(|| {
                 (
                     rng.random_range(0.0..1.0),
@@ -83,7 +93,7 @@ impl LensEffects {
         if w == 0 || h == 0 {
             return;
         }
-        if self.skew_px != 0.0 || self.chroma_px != 0.0 {
+        if self.skew_px != 0.0 || self.chroma_px != 0.0 || self.distortion != 0.0 {
             self.resample(image, scratch, w, h);
         }
         if self.defocus_px > 0 {
@@ -92,8 +102,57 @@ impl LensEffects {
         self.shade(image, w, h);
     }
 
+    /// Where a box of the rendered image lies in the output: through the
+    /// distortion (its edges sampled, as straight lines bend), then the skew.
+    pub fn map_box(&self, b: &PixelBox, width: f64, height: f64) -> PixelBox {
+        let b = if self.distortion == 0.0 {
+            *b
+        } else {
+            let mut out = PixelBox {
+                left: f64::MAX,
+                top: f64::MAX,
+                right: f64::MIN,
+                bottom: f64::MIN,
+            };
+            for i in 0..=16 {
+                let t = f64::from(i) / 16.0;
+                let (x, y) = (b.left + t * b.width(), b.top + t * b.height());
+                for (px, py) in [(x, b.top), (x, b.bottom), (b.left, y), (b.right, y)] {
+                    let (dx, dy) = self.distorted(px, py, width, height);
+                    out.left = out.left.min(dx);
+                    out.right = out.right.max(dx);
+                    out.top = out.top.min(dy);
+                    out.bottom = out.bottom.max(dy);
+                }
+            }
+            out
+        };
+        self.skew_box(&b, height)
+    }
+
+    /// The output pixel that shows rendered point (x, y): the inverse of
+    /// [`LensEffects::undistorted`], by fixed-point iteration.
+    fn distorted(&self, x: f64, y: f64, width: f64, height: f64) -> (f64, f64) {
+        let (cx, cy) = (width / 2.0, height / 2.0);
+        let norm2 = cx * cx + cy * cy;
+        let (ux, uy) = (x - cx, y - cy);
+        let (mut dx, mut dy) = (ux, uy);
+        for _ in 0..20 {
+            let scale = 1.0 + f64::from(self.distortion) * (dx * dx + dy * dy) / norm2;
+            (dx, dy) = (ux / scale, uy / scale);
+        }
+        (dx + cx, dy + cy)
+    }
+
+    /// The rendered point that output pixel (x, y) shows.
+    fn undistorted(&self, x: f32, y: f32, cx: f32, cy: f32) -> (f32, f32) {
+        let (dx, dy) = (x - cx, y - cy);
+        let scale = 1.0 + self.distortion * (dx * dx + dy * dy) / (cx * cx + cy * cy);
+        (cx + dx * scale, cy + dy * scale)
+    }
+
     /// Where a box drawn before the skew lies after it.
-    pub fn skew_box(&self, b: &PixelBox, height: f64) -> PixelBox {
+    fn skew_box(&self, b: &PixelBox, height: f64) -> PixelBox {
         let s = f64::from(self.skew_px) / height.max(1.0);
         let (l1, r1) = (b.left + s * b.top, b.right + s * b.top);
         let (l2, r2) = (b.left + s * b.bottom, b.right + s * b.bottom);
@@ -105,19 +164,22 @@ impl LensEffects {
         }
     }
 
-    /// Rolling-shutter skew and lateral colour, one nearest-pixel lookup per channel.
+    /// Distortion, rolling-shutter skew and lateral colour, one
+    /// nearest-pixel lookup per channel.
     fn resample(&self, image: &mut RgbImage, scratch: &mut Vec<u8>, w: usize, h: usize) {
         scratch.clear();
         scratch.extend_from_slice(image.as_raw());
-        let cx = w as f32 / 2.0;
+        let (cx, cy) = (w as f32 / 2.0, h as f32 / 2.0);
         let out: &mut [u8] = image;
         for y in 0..h {
             let shift = self.skew_px * y as f32 / h as f32;
             for x in 0..w {
-                let spread = self.chroma_px * (x as f32 - cx) / cx;
+                let (ux, uy) = self.undistorted(x as f32 - shift + 0.5, y as f32 + 0.5, cx, cy);
+                let sy = (uy - 0.5).round().clamp(0.0, (h - 1) as f32) as usize;
+                let spread = self.chroma_px * (ux - cx) / cx;
                 for (c, push) in [(0, spread), (1, 0.0), (2, -spread)] {
-                    let sx = (x as f32 - shift - push).round().clamp(0.0, (w - 1) as f32) as usize;
-                    out[(y * w + x) * 3 + c] = scratch[(y * w + sx) * 3 + c];
+                    let sx = (ux - 0.5 - push).round().clamp(0.0, (w - 1) as f32) as usize;
+                    out[(y * w + x) * 3 + c] = scratch[(sy * w + sx) * 3 + c];
                 }
             }
         }
@@ -204,19 +266,71 @@ mod tests {
         let lit = |y: u32| (0..100).find(|&x| img.get_pixel(x, y)[1] == 255);
         assert_eq!(lit(0), Some(40));
         assert_eq!(lit(49), Some(60));
-        let b = lens.skew_box(
+        let b = lens.map_box(
             &PixelBox {
                 left: 39.5,
                 top: 0.0,
                 right: 40.5,
                 bottom: 50.0,
             },
+            100.0,
             50.0,
         );
         assert!(
             (b.left - 39.5).abs() < 1e-9 && (b.right - 60.5).abs() < 1e-9,
             "{b:?}"
         );
+    }
+
+    #[test]
+    fn a_distorted_box_holds_what_was_inside_it() {
+        // A bright rectangle drawn in the scene; barrel distortion bends it;
+        // the mapped box still holds every bright output pixel, snugly.
+        let (w, h) = (160u32, 90u32);
+        let inside = |x: f64, y: f64| (100.0..140.0).contains(&x) && (10.0..60.0).contains(&y);
+        let mut img = RgbImage::from_fn(w, h, |x, y| {
+            let v = if inside(f64::from(x) + 0.5, f64::from(y) + 0.5) {
+                255
+            } else {
+                0
+            };
+            image::Rgb([v, v, v])
+        });
+        let lens = LensEffects {
+            distortion: -0.12,
+            ..LensEffects::default()
+        };
+        lens.apply(&mut img, &mut Vec::new());
+        let b = lens.map_box(
+            &PixelBox {
+                left: 100.0,
+                top: 10.0,
+                right: 140.0,
+                bottom: 60.0,
+            },
+            f64::from(w),
+            f64::from(h),
+        );
+        let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+        for (x, y, p) in img.enumerate_pixels() {
+            if p[1] == 255 {
+                let (x, y) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                lo = (lo.0.min(x), lo.1.min(y));
+                hi = (hi.0.max(x), hi.1.max(y));
+            }
+        }
+        assert!(b.right > 140.0, "barrel moves the edge outward: {b:?}");
+        for (got, want) in [
+            (lo.0, b.left),
+            (lo.1, b.top),
+            (hi.0, b.right),
+            (hi.1, b.bottom),
+        ] {
+            assert!(
+                (got - want).abs() <= 1.5,
+                "pixels {lo:?}..{hi:?}, box {b:?}"
+            );
+        }
     }
 
     #[test]
