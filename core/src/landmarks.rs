@@ -27,6 +27,53 @@ impl MapTower {
     }
 }
 
+/// How a detector's classes meet the database's tower types.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TypeMatch {
+    /// Every database type is one of the detector's classes: identity
+    /// binds a box only to towers of its type.
+    Typed,
+    /// A one-class detector (`tower`): every tower is taken as that class,
+    /// and identity binds by geometry alone.
+    Untyped(TowerType),
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "the landmark database's tower types {missing:?} are not classes of the detector, whose classes are {classes:?}; \
+     train it on those types, or use a one-class model to bind by geometry alone"
+)]
+pub struct TypeMismatch {
+    pub missing: Vec<String>,
+    pub classes: Vec<String>,
+}
+
+/// Check `records`' types against a detector's `classes`: a one-class
+/// detector matches any database; else every stored type must be a class.
+pub fn match_types(
+    classes: &[TowerType],
+    records: &[LandmarkRecord],
+) -> Result<TypeMatch, TypeMismatch> {
+    if let [only] = classes {
+        return Ok(TypeMatch::Untyped(*only));
+    }
+    let mut missing: Vec<String> = records
+        .iter()
+        .filter(|r| !classes.contains(&r.tower_type))
+        .map(|r| r.tower_type.to_string())
+        .collect();
+    missing.sort();
+    missing.dedup();
+    if missing.is_empty() {
+        Ok(TypeMatch::Typed)
+    } else {
+        Err(TypeMismatch {
+            missing,
+            classes: classes.iter().map(|c| c.to_string()).collect(),
+        })
+    }
+}
+
 #[derive(Clone)]
 pub struct LandmarkMap {
     pub towers: Vec<MapTower>,
@@ -61,6 +108,17 @@ impl LandmarkMap {
             towers,
             datum,
         }
+    }
+
+    /// The map as a detector of `types` sees it: with a one-class detector,
+    /// every tower is of its one class.
+    pub fn matched(mut self, types: TypeMatch) -> Self {
+        if let TypeMatch::Untyped(class) = types {
+            for t in &mut self.towers {
+                t.tower_type = class;
+            }
+        }
+        self
     }
 
     /// Records are expected to be validated (the database does so on every write).
@@ -131,5 +189,42 @@ mod tests {
             datum,
         );
         assert_eq!(map.nearby(&Point3::new(0.0, 0.0, 30.0), 1000.0), [1, 2]);
+    }
+
+    #[test]
+    fn a_one_class_detector_matches_any_database_and_others_need_every_type() {
+        let lattice = TowerType::new("lattice").expect("name");
+        let portal = TowerType::new("portal").expect("name");
+        let records = [
+            LandmarkRecord::new("T1", lattice, 30.5, 114.3, 20.0, 40.0),
+            LandmarkRecord::new("T2", portal, 30.51, 114.3, 20.0, 25.0),
+            LandmarkRecord::new("T3", portal, 30.52, 114.3, 20.0, 25.0),
+        ];
+        let tower = TowerType::new("tower").expect("name");
+        assert_eq!(
+            match_types(&[tower], &records),
+            Ok(TypeMatch::Untyped(tower))
+        );
+        assert_eq!(
+            match_types(&[portal, lattice], &records),
+            Ok(TypeMatch::Typed)
+        );
+        let err = match_types(&TowerType::ALL, &records).expect_err("A-D only");
+        assert_eq!(err.missing, ["lattice", "portal"]);
+        let text = err.to_string();
+        assert!(
+            text.contains("\"portal\"") && text.contains("\"D\""),
+            "{text}"
+        );
+
+        let datum = Datum::new(Geodetic {
+            lat_deg: 30.5,
+            lon_deg: 114.3,
+            height_m: 20.0,
+        });
+        let map = LandmarkMap::from_records(&records, &datum).matched(TypeMatch::Untyped(tower));
+        assert!(map.towers.iter().all(|t| t.tower_type == tower));
+        let typed = LandmarkMap::from_records(&records, &datum).matched(TypeMatch::Typed);
+        assert_eq!(typed.towers[1].tower_type, portal);
     }
 }

@@ -26,5 +26,5 @@ pub mod wire;
 #[cfg(test)]
 mod fixtures;
 
-pub use landmarks::{LandmarkMap, MapTower};
+pub use landmarks::{LandmarkMap, MapTower, TypeMatch, TypeMismatch, match_types};
 pub use pipeline::{BoundTrack, FrameOutput, Pipeline, PipelineConfig};

@@ -50,7 +50,7 @@ impl Replica {
         }
         match &change.change {
             LandmarkChangeOp::Upsert { record } => {
-                self.records.insert(record.id.clone(), record.clone());
+                self.records.insert(record.id.clone(), (**record).clone());
             }
             LandmarkChangeOp::Remove { id } => {
                 self.records.remove(id);
@@ -89,7 +89,7 @@ mod tests {
         LandmarkChange {
             revision,
             change: LandmarkChangeOp::Upsert {
-                record: LandmarkRecord::new(id, TowerType::A, 30.5, 114.3, 20.0, h),
+                record: Box::new(LandmarkRecord::new(id, TowerType::A, 30.5, 114.3, 20.0, h)),
             },
         }
     }

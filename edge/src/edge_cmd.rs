@@ -9,16 +9,16 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use nalgebra::Point3;
-use towernav_core::LandmarkMap;
 use towernav_core::daemon::{DaemonConfig, DaemonCore, FrameObserver, percentiles};
 use towernav_core::detector::PostprocessParams;
 use towernav_core::localizer::Method;
 use towernav_core::pipeline::{Pipeline, PipelineConfig};
 use towernav_core::wire::pose_method;
+use towernav_core::{LandmarkMap, TypeMatch, match_types};
 use towernav_geometry::{Datum, Geodetic, Intrinsics, PinholeCamera};
 use towernav_onnx::{DetectorOptions, YoloDetector};
 use towernav_protocol::session::Endpoints;
-use towernav_protocol::{LandmarkRecord, NodeId};
+use towernav_protocol::{LandmarkRecord, NodeId, TowerType};
 use zenoh::Session;
 
 #[cfg(feature = "demo")]
@@ -56,7 +56,21 @@ pub async fn run_edge(
     let session = open_zenoh(config).await?;
     let mut sync = start_sync(&session, config, &fleet).await?;
     let records = landmark_records(config, sync.as_ref(), sim.as_deref())?;
-    let map = LandmarkMap::from_records(&records, &datum);
+    let (detector, detector_name) = load_detector(&config.detector)?;
+    let classes: Option<Vec<TowerType>> = detector.as_ref().map(|d| d.classes().to_vec());
+    let types = match &classes {
+        Some(classes) => match_types(classes, &records).with_context(|| {
+            format!(
+                "the detector {} cannot tell the landmarks' types apart",
+                config.detector.model.display()
+            )
+        })?,
+        None => TypeMatch::Typed,
+    };
+    if let TypeMatch::Untyped(class) = types {
+        tracing::info!(%class, "one-class detector: towers are bound by geometry alone");
+    }
+    let map = LandmarkMap::from_records(&records, &datum).matched(types);
     let node = EdgeNode::new(session, fleet.clone(), uav.clone()).await?;
 
     #[cfg(feature = "demo")]
@@ -71,7 +85,6 @@ pub async fn run_edge(
         anyhow::bail!("the demo needs the simulator: build towernav-edge with `--features demo`");
     }
 
-    let (detector, detector_name) = load_detector(&config.detector)?;
     let source: Box<dyn FrameSource> = match &sim {
         Some(sim) => sim.source(config),
         None => open_source(config)?,
@@ -89,7 +102,7 @@ pub async fn run_edge(
         pipeline,
         Instant::now(),
     );
-    let options = run_options(config, detector_name)?;
+    let options = run_options(config, detector_name, classes)?;
     print_banner(config, &fleet);
 
     #[cfg(feature = "demo")]
@@ -147,7 +160,11 @@ fn pipeline_for(
 }
 
 /// The shell's side of the config: pacing, queue, logs, MAVLink, annotated frames.
-fn run_options(config: &EdgeConfig, detector_name: String) -> anyhow::Result<RunOptions> {
+fn run_options(
+    config: &EdgeConfig,
+    detector_name: String,
+    classes: Option<Vec<TowerType>>,
+) -> anyhow::Result<RunOptions> {
     if let Some(dir) = &config.output.annotated {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -162,6 +179,7 @@ fn run_options(config: &EdgeConfig, detector_name: String) -> anyhow::Result<Run
             .then(|| MavlinkOut::open(&config.mavlink))
             .transpose()?,
         annotate_dir: config.output.annotated.clone(),
+        classes,
     })
 }
 

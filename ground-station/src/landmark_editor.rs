@@ -55,7 +55,8 @@ enum Column {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Form {
     pub id: String,
-    pub tower_type: TowerType,
+    /// The design's name as the line's owner calls it (A to D in the demo).
+    pub tower_type: String,
     pub lat: String,
     pub lon: String,
     pub elev: String,
@@ -69,7 +70,7 @@ impl Default for Form {
     fn default() -> Self {
         Self {
             id: String::new(),
-            tower_type: TowerType::A,
+            tower_type: TowerType::A.to_string(),
             lat: String::new(),
             lon: String::new(),
             elev: String::new(),
@@ -88,7 +89,7 @@ impl Form {
     pub fn from_record(r: &LandmarkRecord) -> Self {
         Self {
             id: r.id.clone(),
-            tower_type: r.tower_type,
+            tower_type: r.tower_type.to_string(),
             lat: r.lat_deg.to_string(),
             lon: r.lon_deg.to_string(),
             elev: r.ground_elev_m.to_string(),
@@ -103,6 +104,13 @@ impl Form {
     /// then the database's own validation).
     pub fn record(&self, base: Option<&LandmarkRecord>) -> Result<LandmarkRecord, FieldErrors> {
         let mut errors = FieldErrors::new();
+        let tower_type = match TowerType::new(&self.tower_type) {
+            Ok(t) => t,
+            Err(e) => {
+                errors.push(("tower_type", e.to_string()));
+                TowerType::A
+            }
+        };
         let mut number = |field: &'static str, text: &str| match text.trim().parse::<f64>() {
             Ok(v) => v,
             Err(_) => {
@@ -124,10 +132,10 @@ impl Form {
         }
         let optional = |s: &str| (!s.trim().is_empty()).then(|| s.trim().to_owned());
         let mut record = base.cloned().unwrap_or_else(|| {
-            LandmarkRecord::new(self.id.trim(), self.tower_type, lat, lon, elev, height)
+            LandmarkRecord::new(self.id.trim(), tower_type, lat, lon, elev, height)
         });
         record.id = self.id.trim().to_owned();
-        record.tower_type = self.tower_type;
+        record.tower_type = tower_type;
         record.lat_deg = lat;
         record.lon_deg = lon;
         record.ground_elev_m = elev;
@@ -198,7 +206,7 @@ fn rows<'a>(state: &EditorState, records: &'a [LandmarkRecord]) -> Vec<&'a Landm
     rows.sort_by(|a, b| {
         let o = match column {
             Column::Id => a.id.cmp(&b.id),
-            Column::Type => a.tower_type.index().cmp(&b.tower_type.index()),
+            Column::Type => a.tower_type.cmp(&b.tower_type),
             Column::Lat => cmp_f64(a.lat_deg, b.lat_deg),
             Column::Lon => cmp_f64(a.lon_deg, b.lon_deg),
             Column::Elev => cmp_f64(a.ground_elev_m, b.ground_elev_m),
@@ -341,15 +349,27 @@ fn form(
             } else {
                 field(ui, "Id", &mut f.id, error("id"));
             }
-            ui.label("Type");
-            egui::ComboBox::new("tower type", "type")
-                .selected_text(f.tower_type.as_str())
-                .show_ui(ui, |ui| {
-                    for t in TowerType::ALL {
-                        ui.selectable_value(&mut f.tower_type, t, t.as_str());
-                    }
-                });
-            ui.end_row();
+            field(ui, "Type", &mut f.tower_type, error("tower_type"));
+            // The types already in the database, one click away.
+            let mut known: Vec<TowerType> = records.iter().map(|r| r.tower_type).collect();
+            known.sort();
+            known.dedup();
+            if !known.is_empty() {
+                ui.label("");
+                egui::ComboBox::new("known tower types", "known types")
+                    .selected_text(f.tower_type.as_str())
+                    .show_ui(ui, |ui| {
+                        for t in known {
+                            if ui
+                                .selectable_label(f.tower_type == t.as_str(), t.as_str())
+                                .clicked()
+                            {
+                                f.tower_type = t.to_string();
+                            }
+                        }
+                    });
+                ui.end_row();
+            }
             field(ui, "Latitude (deg)", &mut f.lat, error("lat_deg"));
             field(ui, "Longitude (deg)", &mut f.lon, error("lon_deg"));
             field(
@@ -556,6 +576,18 @@ mod tests {
                 ("height_m", "is required".to_owned())
             ]
         );
+        let portal = Form {
+            tower_type: "Portal 2".into(),
+            ..form()
+        };
+        let r = portal.record(None).expect("any design's name is a type");
+        assert_eq!(r.tower_type.as_str(), "Portal 2");
+        let unnamed = Form {
+            tower_type: " ".into(),
+            ..form()
+        };
+        let errors = unnamed.record(None).expect_err("a type needs a name");
+        assert_eq!(errors[0].0, "tower_type", "{errors:?}");
         let tall = Form {
             height: "900".into(),
             ..form()

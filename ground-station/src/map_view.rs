@@ -58,6 +58,7 @@ fn tower_marker(t: TowerType) -> MarkerShape {
         TowerType::B => MarkerShape::Square,
         TowerType::C => MarkerShape::Circle,
         TowerType::D => MarkerShape::Cross,
+        _ => MarkerShape::Diamond,
     }
 }
 
@@ -154,7 +155,10 @@ pub fn show(
 }
 
 fn draw_towers(plot: &mut PlotUi<'_>, towers: &[MapTower]) {
-    for t in TowerType::ALL {
+    let mut types: Vec<TowerType> = towers.iter().map(|m| m.tower_type).collect();
+    types.sort();
+    types.dedup();
+    for t in types {
         let pts: Vec<[f64; 2]> = towers
             .iter()
             .filter(|m| m.tower_type == t)

@@ -116,7 +116,7 @@ mod tests {
     #[test]
     fn every_bad_row_is_reported_with_line_and_field() {
         let bad = format!(
-            "{GOOD}C1,C,30.5,114.3,20,tall,\nD1,Q,30.5,114.3,20,40,\nA1,A,30.5,114.3,20,35,\n"
+            "{GOOD}C1,C,30.5,114.3,20,tall,\nD1,Q;R,30.5,114.3,20,40,\nA1,A,30.5,114.3,20,35,\n"
         );
         let Err(ImportError::Rejected { problems, .. }) = read_csv(bad.as_bytes(), "bad.csv")
         else {

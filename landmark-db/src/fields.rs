@@ -54,7 +54,7 @@ pub(crate) fn build_record(
     let tower_type = get(REQUIRED[1])
         .ok_or_else(|| problem("tower_type", "is missing".into()))?
         .parse()
-        .map_err(|e| problem("tower_type", e))?;
+        .map_err(|e: towernav_protocol::TowerTypeError| problem("tower_type", e.to_string()))?;
     let record = LandmarkRecord {
         base_width_m: maybe_number(OPTIONAL[0])?,
         line_name: get(OPTIONAL[1]),

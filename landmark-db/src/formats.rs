@@ -177,7 +177,12 @@ impl OsmMapping {
         let [key, value, t] = parts.as_slice() else {
             return Err(format!("{s:?} is not key=value=TYPE (e.g. design=donau=A)"));
         };
-        Ok(((*key).into(), (*value).into(), t.parse()?))
+        Ok((
+            (*key).into(),
+            (*value).into(),
+            t.parse()
+                .map_err(|e: towernav_protocol::TowerTypeError| e.to_string())?,
+        ))
     }
 }
 

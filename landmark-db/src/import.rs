@@ -49,8 +49,8 @@ pub struct ImportOptions {
     pub skip_invalid: bool,
     /// Towers closer than this to another are flagged.
     pub min_spacing_m: f64,
-    /// Plausible height range per tower type (A, B, C, D), metres.
-    pub height_range_m: [(f64, f64); 4],
+    /// Plausible tower height range, metres.
+    pub height_range_m: (f64, f64),
     /// How OSM tags become tower types and ground elevations.
     pub osm: OsmMapping,
 }
@@ -60,7 +60,7 @@ impl Default for ImportOptions {
         Self {
             skip_invalid: false,
             min_spacing_m: 30.0,
-            height_range_m: [(15.0, 80.0); 4],
+            height_range_m: (15.0, 80.0),
             osm: OsmMapping::default(),
         }
     }
@@ -212,13 +212,13 @@ pub fn likely_mistakes(
                 "replaces the tower already stored under this id".into(),
             ));
         }
-        let (lo, hi) = options.height_range_m[r.tower_type.index()];
+        let (lo, hi) = options.height_range_m;
         if !(lo..=hi).contains(&r.height_m) {
             warnings.push(warn(
                 &r.id,
                 CheckKind::Height,
                 format!(
-                    "height {} m is outside {lo}..={hi} m for type {}",
+                    "height {} m is outside {lo}..={hi} m (type {})",
                     r.height_m, r.tower_type
                 ),
             ));

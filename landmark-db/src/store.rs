@@ -379,12 +379,15 @@ impl LandmarkDb {
 }
 
 fn decode(path: &str, raw: RawRow) -> Result<LandmarkRecord, DbError> {
-    let tower_type: TowerType = raw.tower_type.parse().map_err(|reason| DbError::Corrupt {
-        path: path.into(),
-        id: raw.record.id.clone(),
-        field: "tower_type",
-        reason,
-    })?;
+    let tower_type: TowerType =
+        raw.tower_type
+            .parse()
+            .map_err(|e: towernav_protocol::TowerTypeError| DbError::Corrupt {
+                path: path.into(),
+                id: raw.record.id.clone(),
+                field: "tower_type",
+                reason: e.to_string(),
+            })?;
     Ok(LandmarkRecord {
         tower_type,
         ..raw.record
@@ -616,7 +619,7 @@ mod tests {
         let mut replica = std::collections::BTreeMap::new();
         for c in changes {
             match c.change {
-                LandmarkChangeOp::Upsert { record } => replica.insert(record.id.clone(), record),
+                LandmarkChangeOp::Upsert { record } => replica.insert(record.id.clone(), *record),
                 LandmarkChangeOp::Remove { id } => replica.remove(&id),
             };
         }
@@ -699,7 +702,7 @@ mod tests {
                 );
                 let log = db.changes_since(0).expect("backfilled log");
                 assert!(
-                    matches!(&log[..], [LandmarkChange { revision: 1, change: LandmarkChangeOp::Upsert { record } }] if *record == a1)
+                    matches!(&log[..], [LandmarkChange { revision: 1, change: LandmarkChangeOp::Upsert { record } }] if **record == a1)
                 );
             }
         }

@@ -76,6 +76,11 @@ impl TypeClassifier {
         })
     }
 
+    /// Its class names, in output order.
+    pub fn class_names(&self) -> &[String] {
+        &self.classes.names
+    }
+
     /// Class probabilities for each box, one row of `classes` per box.
     pub fn probabilities(
         &mut self,

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 use ort::session::Session;
 use ort::value::TensorRef;
-use towernav_protocol::Detection;
+use towernav_protocol::{Detection, TowerType};
 
 use crate::runtime::{OnnxError, load_session, model_classes, only_input};
 use crate::type_classifier::TypeClassifier;
@@ -119,6 +119,19 @@ impl YoloDetector {
         Ok(match type_model {
             Some(path) => {
                 let classifier = TypeClassifier::load(path, options.threads, options.cuda)?;
+                // Its probabilities are blended with the detector's class
+                // scores one for one: the classes must be the same, in order.
+                if classifier.class_names() != detector.info.classes.as_slice() {
+                    return Err(OnnxError::Model {
+                        path: path.to_path_buf(),
+                        reason: format!(
+                            "the type classifier's classes {:?} are not the detector's {:?} ({})",
+                            classifier.class_names(),
+                            detector.info.classes,
+                            model.display()
+                        ),
+                    });
+                }
                 detector.with_type_classifier(path, classifier)
             }
             None => detector,
@@ -133,6 +146,11 @@ impl YoloDetector {
         // is of a tower, whatever type it guessed.
         self.post.score = ScoreMode::AnyType;
         self
+    }
+
+    /// The tower types it tells apart, in class order.
+    pub fn classes(&self) -> &[TowerType] {
+        self.classes.types()
     }
 
     pub fn info(&self) -> &DetectorInfo {

@@ -10,6 +10,7 @@ pub mod keys;
 pub mod messages;
 #[cfg(feature = "zenoh")]
 pub mod session;
+pub mod tower_type;
 
 pub use codec::{DecodeError, EncodeError, Message, SCHEMA_VERSION, decode, encode};
 pub use ids::{IdError, NodeId};

@@ -6,48 +6,7 @@ use towernav_geometry::{Geodetic, PixelBox};
 use crate::codec::Message;
 use crate::ids::NodeId;
 use crate::keys::{Topic, UavMessage};
-
-/// The detector's tower classes; the landmark database uses the same set.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-pub enum TowerType {
-    A,
-    B,
-    C,
-    D,
-}
-
-impl TowerType {
-    pub const ALL: [TowerType; 4] = [TowerType::A, TowerType::B, TowerType::C, TowerType::D];
-
-    pub fn as_str(self) -> &'static str {
-        match self {
-            TowerType::A => "A",
-            TowerType::B => "B",
-            TowerType::C => "C",
-            TowerType::D => "D",
-        }
-    }
-
-    pub fn index(self) -> usize {
-        self as usize
-    }
-}
-
-impl std::str::FromStr for TowerType {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        TowerType::ALL
-            .into_iter()
-            .find(|t| t.as_str().eq_ignore_ascii_case(s.trim()))
-            .ok_or_else(|| format!("unknown tower type {s:?} (expected one of A, B, C, D)"))
-    }
-}
-
-impl std::fmt::Display for TowerType {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
+pub use crate::tower_type::{TowerType, TowerTypeError};
 
 /// How a pose was computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -269,8 +228,13 @@ impl LandmarkRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "op", rename_all = "snake_case")]
 pub enum LandmarkChangeOp {
-    Upsert { record: LandmarkRecord },
-    Remove { id: String },
+    /// Boxed: a record is ten times the size of a removal.
+    Upsert {
+        record: Box<LandmarkRecord>,
+    },
+    Remove {
+        id: String,
+    },
 }
 
 /// One change of the landmark database, in revision order.

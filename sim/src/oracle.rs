@@ -109,12 +109,16 @@ impl OracleDetector {
                 b.bbox.bottom + jitter(),
             )
             .clipped(width, height);
-            let tower_type =
-                if p.type_confusion > 0.0 && self.rng.random_bool(probability(p.type_confusion)) {
-                    TowerType::ALL[(b.tower_type.index() + self.rng.random_range(1..4)) % 4]
-                } else {
-                    b.tower_type
-                };
+            // Confusion swaps among the rendered designs; other types stay as surveyed.
+            let tower_type = match b.tower_type.rendered_index() {
+                Some(i)
+                    if p.type_confusion > 0.0
+                        && self.rng.random_bool(probability(p.type_confusion)) =>
+                {
+                    TowerType::ALL[(i + self.rng.random_range(1..4)) % 4]
+                }
+                _ => b.tower_type,
+            };
             out.push(Detection {
                 bbox,
                 tower_type,

@@ -127,7 +127,8 @@ fn design(tower_type: TowerType) -> Design {
             panels: (6, 4),
         },
         // Tall, single wide arm high up, earth-wire horns, slim head.
-        TowerType::D => Design {
+        // D, and any type a surveyed world names that is not one of the four.
+        _ => Design {
             waist: (0.16, 0.70),
             head_half: 0.10,
             body_top: 0.90,

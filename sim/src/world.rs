@@ -281,6 +281,7 @@ pub fn nominal_size(tower_type: TowerType) -> (f64, f64) {
         TowerType::B => (38.0, 7.0),
         TowerType::C => (45.0, 8.0),
         TowerType::D => (52.0, 9.0),
+        _ => (40.0, 7.5),
     }
 }
 

@@ -160,6 +160,19 @@ fn wrong_type_classifiers_are_refused_at_load_saying_why() {
     .expect("refused")
     .to_string();
     assert!(err.contains("fake-types-dynamic.onnx"), "{err}");
+    // A classifier must name the detector's own classes, in its order.
+    let err = YoloDetector::load_with_types(
+        &fixture("fake-v8-tower.onnx"),
+        Some(&fixture("fake-types.onnx")),
+        &DetectorOptions::default(),
+    )
+    .err()
+    .expect("refused")
+    .to_string();
+    assert!(
+        err.contains("fake-types.onnx") && err.contains("[\"tower\"]"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -393,3 +393,69 @@ async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> a
     );
     Ok(())
 }
+
+/// Four white 128x64 frames, a level attitude log and the paper's towers (types
+/// A-D) in `dir`; the daemon's config reads them with the stand-in `model`.
+fn frames_and_towers(dir: &std::path::Path, model: &str) -> anyhow::Result<EdgeConfig> {
+    let frames = dir.join("frames");
+    std::fs::create_dir_all(&frames)?;
+    for i in 0..4 {
+        image::RgbImage::from_pixel(128, 64, image::Rgb([255, 255, 255]))
+            .save(frames.join(format!("f{i}.png")))?;
+    }
+    std::fs::write(
+        dir.join("att.csv"),
+        "time_s,roll_deg,pitch_deg,heading_deg\n0,0,0,90\n10,0,0,90\n",
+    )?;
+    let world = Scenario::paper(1).world;
+    let towers = dir.join("towers.csv");
+    towernav_landmark_db::export_csv(&world.landmarks(), std::fs::File::create(&towers)?)?;
+    let mut c = EdgeConfig {
+        fleet: "types".into(),
+        ..EdgeConfig::default()
+    };
+    c.zenoh.listen = vec![towernav_tests::loopback_endpoint()];
+    c.source.kind = SourceKind::Images;
+    c.source.path = Some(frames.display().to_string());
+    c.source.width = 128;
+    c.source.height = 64;
+    c.source.speed = Some(0.0);
+    c.attitude.kind = AttitudeKind::Csv;
+    c.attitude.path = Some(dir.join("att.csv"));
+    c.detector.model = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(model);
+    c.detector.classify_types = false;
+    c.landmarks.file = Some(towers);
+    c.pipeline.takeoff = Some([world.datum.origin.lat_deg, world.datum.origin.lon_deg, 30.0]);
+    Ok(c)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_one_class_model_flies_over_any_typed_database() -> anyhow::Result<()> {
+    let dir = tempfile::tempdir()?;
+    let c = frames_and_towers(dir.path(), "fake-v8-tower.onnx")?;
+    let summary = run_edge(&c, None, Arc::new(AtomicBool::new(false))).await?;
+    assert_eq!(summary.record.frames, 4, "every frame went through");
+    Ok(())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_model_without_the_databases_types_is_refused_naming_both() -> anyhow::Result<()> {
+    let dir = tempfile::tempdir()?;
+    let c = frames_and_towers(dir.path(), "fake-v8-lattice.onnx")?;
+    let Err(err) = run_edge(&c, None, Arc::new(AtomicBool::new(false))).await else {
+        panic!("A-D towers and a lattice/tubular model: the daemon should refuse");
+    };
+    let text = format!("{err:#}");
+    for needle in [
+        "fake-v8-lattice.onnx",
+        "\"A\"",
+        "\"D\"",
+        "\"lattice\"",
+        "\"tubular\"",
+    ] {
+        assert!(text.contains(needle), "{needle} missing from: {text}");
+    }
+    Ok(())
+}

@@ -1,12 +1,15 @@
-//! The model's classes, read from its metadata, matched against the tower
-//! types the landmark database knows.
+//! The model's classes, read from its metadata: its class names are the
+//! tower types it tells apart (`A`-`D` for the demo's models, "lattice" or a
+//! line's own design names for a user's, one `tower` class for a model that
+//! does not tell types apart). Whether they are the landmark database's
+//! types is checked where both are known (`landmarks::match_types`).
 //!
 //! Ultralytics writes `names` as a Python dict literal, `{0: 'A', 1: 'B'}`;
-//! other exporters write a JSON list or object. A model whose classes are not
-//! exactly the database's tower types would bind boxes to the wrong towers, so
-//! it is refused at load.
+//! other exporters write a JSON list or object.
 
 use towernav_protocol::TowerType;
+
+use super::decode::MAX_CLASSES;
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ClassError {
@@ -17,14 +20,14 @@ pub enum ClassError {
     #[error("the model's `names` metadata is not a class list ({reason}): {text:?}")]
     Unreadable { text: String, reason: String },
     #[error(
-        "the model's {} classes ({}) are not the database's tower types {expected:?}; \
-         train it on `towernav-sim dataset` output (classes A, B, C, D in that order)",
+        "the model has {} classes ({}); a tower detector has 1 to {MAX_CLASSES} tower types",
         found.len(), preview(found)
     )]
-    Mismatch {
-        found: Vec<String>,
-        expected: Vec<String>,
-    },
+    TooMany { found: Vec<String> },
+    #[error("the model's class {index} is not a tower type name: {reason}")]
+    BadName { index: usize, reason: String },
+    #[error("the model names class {name:?} twice")]
+    Duplicate { name: String },
 }
 
 /// The first few names, for messages about models with many classes.
@@ -46,22 +49,28 @@ pub struct ClassMap {
 }
 
 impl ClassMap {
-    /// Classes from the `names` metadata value, checked against the tower types.
+    /// Classes from the `names` metadata value: 1 to `MAX_CLASSES` distinct type names.
     pub fn from_metadata(names: Option<&str>) -> Result<Self, ClassError> {
         let text = names.ok_or(ClassError::Missing)?;
         let names = parse_names(text).map_err(|reason| ClassError::Unreadable {
             text: text.to_string(),
             reason,
         })?;
-        let expected: Vec<String> = TowerType::ALL.iter().map(|t| t.to_string()).collect();
-        let types: Option<Vec<TowerType>> = names.iter().map(|n| n.parse().ok()).collect();
-        match types {
-            Some(types) if names == expected => Ok(Self { names, types }),
-            _ => Err(ClassError::Mismatch {
-                found: names,
-                expected,
-            }),
+        if names.is_empty() || names.len() > MAX_CLASSES {
+            return Err(ClassError::TooMany { found: names });
         }
+        let mut types: Vec<TowerType> = Vec::with_capacity(names.len());
+        for (index, name) in names.iter().enumerate() {
+            let t = TowerType::new(name).map_err(|e| ClassError::BadName {
+                index,
+                reason: e.to_string(),
+            })?;
+            if types.contains(&t) {
+                return Err(ClassError::Duplicate { name: name.clone() });
+            }
+            types.push(t);
+        }
+        Ok(Self { names, types })
     }
 
     pub fn len(&self) -> usize {
@@ -74,6 +83,11 @@ impl ClassMap {
 
     pub fn tower_type(&self, class: usize) -> Option<TowerType> {
         self.types.get(class).copied()
+    }
+
+    /// The types, in class order.
+    pub fn types(&self) -> &[TowerType] {
+        &self.types
     }
 }
 
@@ -189,16 +203,27 @@ mod tests {
     }
 
     #[test]
-    fn classes_other_than_the_tower_types_are_refused_naming_both() {
-        let err = ClassMap::from_metadata(Some("{0: 'person', 1: 'bicycle'}"))
-            .expect_err("coco")
+    fn any_tower_type_names_are_classes_and_bad_lists_are_refused() {
+        let one = ClassMap::from_metadata(Some("{0: 'tower'}")).expect("one class");
+        assert_eq!(one.types(), [TowerType::new("tower").expect("name")]);
+        let own = ClassMap::from_metadata(Some("['lattice', 'tubular', 'portal']")).expect("own");
+        assert_eq!(own.tower_type(2).map(|t| t.as_str()), Some("portal"));
+        let many: Vec<String> = (0..80).map(|i| format!("'c{i}'")).collect();
+        let err = ClassMap::from_metadata(Some(&format!("[{}]", many.join(", "))))
+            .expect_err("coco-sized")
             .to_string();
         assert!(
-            err.contains("2 classes (person, bicycle)") && err.contains("\"A\""),
+            err.contains("80 classes") && err.contains("tower types"),
             "{err}"
         );
-        let reordered = ClassMap::from_metadata(Some("{0: 'B', 1: 'A', 2: 'C', 3: 'D'}"));
-        assert!(matches!(reordered, Err(ClassError::Mismatch { .. })));
+        assert!(matches!(
+            ClassMap::from_metadata(Some("['A', 'a']")),
+            Err(ClassError::Duplicate { .. })
+        ));
+        assert!(matches!(
+            ClassMap::from_metadata(Some("['ok', 'no,way']")),
+            Err(ClassError::BadName { index: 1, .. })
+        ));
         assert_eq!(ClassMap::from_metadata(None), Err(ClassError::Missing));
         assert!(matches!(
             ClassMap::from_metadata(Some("{0: 'A', 2: 'B'}")),

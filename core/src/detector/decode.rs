@@ -4,7 +4,6 @@
 //! model-input pixels.
 
 use towernav_geometry::PixelBox;
-use towernav_protocol::TowerType;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
@@ -34,10 +33,12 @@ pub fn layout(shape: &[usize], classes: usize) -> Result<Layout, LayoutError> {
     }
 }
 
-/// A candidate's score for every class, in model order. Sized for the tower
-/// types: `ClassMap` refuses any other class list at load, and a shorter
-/// output leaves the rest at zero.
-pub type ClassScores = [f32; TowerType::ALL.len()];
+/// Most classes a tower detector may have (`ClassMap` refuses more at load).
+pub const MAX_CLASSES: usize = 16;
+
+/// A candidate's score for every class, in model order; classes past the
+/// model's stay at zero.
+pub type ClassScores = [f32; MAX_CLASSES];
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RawDetection {
@@ -237,7 +238,8 @@ mod tests {
         assert_eq!(dets[0].class, 1);
         assert!((dets[0].score - 0.72).abs() < 1e-6);
         assert_eq!(dets[0].bbox, PixelBox::new(90.0, 160.0, 110.0, 240.0));
-        assert_eq!(dets[0].class_scores, [0.1, 0.8, 0.05, 0.05]);
+        assert_eq!(dets[0].class_scores[..4], [0.1, 0.8, 0.05, 0.05]);
+        assert!(dets[0].class_scores[4..].iter().all(|s| *s == 0.0));
     }
 
     #[test]

@@ -137,7 +137,7 @@ mod tests {
             dets[0].detection.bbox,
             PixelBox::new(250.0, 250.0, 275.0, 350.0)
         );
-        assert_eq!(dets[0].class_scores, [0.0, 0.9, 0.0, 0.0]);
+        assert_eq!(dets[0].class_scores[..4], [0.0, 0.9, 0.0, 0.0]);
         assert_eq!(dets[1].detection.tower_type, TowerType::D);
         assert_eq!(dets[1].detection.bbox.right, 1280.0, "clipped to the frame");
     }

@@ -8,7 +8,7 @@
 //! `training/train_types.py` cuts its training crops the same way.
 
 use towernav_geometry::PixelBox;
-use towernav_protocol::{Detection, TowerType};
+use towernav_protocol::Detection;
 
 use super::classes::ClassMap;
 use super::crop_batch::Region;
@@ -58,7 +58,7 @@ pub fn retype(
             ranked.filter_map(move |(class, prob)| {
                 Some(RawDetection {
                     bbox: c.detection.bbox,
-                    class: classes.tower_type(class)?.index(),
+                    class: classes.tower_type(class).map(|_| class)?,
                     score: (c.detection.score as f32) * prob,
                     class_scores: p,
                 })
@@ -67,10 +67,12 @@ pub fn retype(
         .collect();
     nms(raw, params.nms_iou)
         .into_iter()
-        .map(|r| Detection {
-            bbox: r.bbox,
-            tower_type: TowerType::ALL[r.class],
-            score: f64::from(r.score),
+        .filter_map(|r| {
+            Some(Detection {
+                bbox: r.bbox,
+                tower_type: classes.tower_type(r.class)?,
+                score: f64::from(r.score),
+            })
         })
         .collect()
 }
@@ -110,6 +112,7 @@ fn blend(probs: &[f32], detector: &ClassScores, weight: f32) -> ClassScores {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+    use towernav_protocol::TowerType;
 
     fn classes() -> ClassMap {
         ClassMap::from_metadata(Some("{0: 'A', 1: 'B', 2: 'C', 3: 'D'}")).expect("classes")
@@ -131,7 +134,7 @@ mod tests {
 
     fn candidate(bbox: PixelBox, tower_type: TowerType, score: f64) -> Candidate {
         let mut class_scores = ClassScores::default();
-        class_scores[tower_type.index()] = 1.0;
+        class_scores[tower_type.rendered_index().expect("a rendered design")] = 1.0;
         Candidate {
             detection: Detection {
                 bbox,
@@ -187,7 +190,7 @@ mod tests {
         let b = PixelBox::new(100.0, 100.0, 120.0, 180.0);
         // The crop reads D a little more than A; the detector saw an A.
         let mut dets = [candidate(b, TowerType::A, 0.9)];
-        dets[0].class_scores = [0.8, 0.05, 0.0, 0.1];
+        dets[0].class_scores[..4].copy_from_slice(&[0.8, 0.05, 0.0, 0.1]);
         let probs = [0.4, 0.02, 0.03, 0.55];
         let params = PostprocessParams::default();
         assert!(params.detector_type_weight > 0.0);
@@ -230,6 +233,9 @@ mod tests {
         ) {
             let total: f32 = raw.iter().sum();
             let probs: Vec<f32> = raw.iter().map(|p| p / total).collect();
+            let mut scores = ClassScores::default();
+            scores[..4].copy_from_slice(&detector);
+            let detector = scores;
             let b = blend(&probs, &detector, weight);
             prop_assert!((b.iter().sum::<f32>() - 1.0).abs() < 1e-4);
             prop_assert!(b.iter().all(|p| (0.0..=1.0).contains(p)));

@@ -11,13 +11,13 @@ use std::time::{Duration, Instant};
 
 use image::RgbImage;
 use image::codecs::jpeg::JpegEncoder;
-use towernav_core::LandmarkMap;
 use towernav_core::daemon::{
     Command, DaemonCore, DetectedFrame, FrameObserver, Output, SourceCounters,
 };
 use towernav_core::flight_record::FlightRecord;
+use towernav_core::{LandmarkMap, TypeMatch, match_types};
 use towernav_geometry::Datum;
-use towernav_protocol::{IdCorrection, PoseEstimate, Preview, TrackReport, TruthPose};
+use towernav_protocol::{IdCorrection, PoseEstimate, Preview, TowerType, TrackReport, TruthPose};
 use zenoh::sample::Sample;
 
 use super::config::Pacing;
@@ -39,6 +39,9 @@ pub struct RunOptions {
     pub jsonl: Option<std::path::PathBuf>,
     pub mavlink: Option<MavlinkOut>,
     pub annotate_dir: Option<std::path::PathBuf>,
+    /// The detector's classes, each new landmark set checked against them
+    /// (`None`: the oracle, which reports the surveyed types themselves).
+    pub classes: Option<Vec<TowerType>>,
 }
 
 /// Everything one run of the daemon is made of.
@@ -121,6 +124,7 @@ impl Daemon<'_> {
         let worker_queue = queue.clone();
         let worker_task = tokio::task::spawn_blocking(move || worker.run(worker_queue, frames_tx));
 
+        let classes = options.classes.take();
         let mut sinks = Sinks::new(node, datum, &mut options)?;
         let counters = || SourceCounters {
             dropped: queue.dropped(),
@@ -158,7 +162,9 @@ impl Daemon<'_> {
                 }
                 Event::Correction(c) => core.handle_command(Instant::now(), Command::Correct(c)),
                 Event::Landmarks(change) => {
-                    if let Some(map) = changed_map(sync.as_deref_mut(), change, &datum).await? {
+                    let changed =
+                        changed_map(sync.as_deref_mut(), change, &datum, classes.as_deref());
+                    if let Some(map) = changed.await? {
                         core.handle_command(Instant::now(), Command::ReplaceMap(map));
                     }
                 }
@@ -346,11 +352,14 @@ async fn process(
     .map_err(|e| ShellError::Daemon(format!("the pipeline failed: {e}")))
 }
 
-/// The map after a landmark change, when the change altered the set.
+/// The map after a landmark change, when the change altered the set and its
+/// types are ones the detector knows (else the map in use stays, and the
+/// refusal is logged naming the types).
 async fn changed_map(
     sync: Option<&mut LandmarkSync>,
     change: Option<Sample>,
     datum: &Datum,
+    classes: Option<&[TowerType]>,
 ) -> Result<Option<LandmarkMap>, ShellError> {
     let Some(sync) = sync else {
         return Ok(None);
@@ -364,7 +373,18 @@ async fn changed_map(
         towers = replica.len(),
         "landmarks updated from the ground station"
     );
-    Ok(Some(LandmarkMap::from_records(&replica.records(), datum)))
+    let records = replica.records();
+    let types = match classes.map(|c| match_types(c, &records)) {
+        None => TypeMatch::Typed,
+        Some(Ok(types)) => types,
+        Some(Err(mismatch)) => {
+            tracing::error!(%mismatch, "keeping the landmark set in use");
+            return Ok(None);
+        }
+    };
+    Ok(Some(
+        LandmarkMap::from_records(&records, datum).matched(types),
+    ))
 }
 
 /// The next landmark change, or never when there is no sync.

@@ -156,19 +156,23 @@ pub fn evaluate(
                 .detect(&buffers.image, seq)
                 .with_context(|| format!("world {world_seed}, frame {seq}"))?;
             latencies.push(t0.elapsed().as_secs_f64() * 1e3);
+            // Rendered worlds hold the four rendered designs only; a type
+            // outside them (from a model with other classes) is a class
+            // past them, scored as wrong.
+            let class = |t: TowerType| t.rendered_index().unwrap_or(classes);
             let labels: Vec<Labelled> = truth
                 .boxes
                 .iter()
                 .map(|b| Labelled {
                     bbox: b.bbox,
-                    class: b.tower_type.index(),
+                    class: class(b.tower_type),
                 })
                 .collect();
             let scored: Vec<Scored> = dets
                 .iter()
                 .map(|d| Scored {
                     bbox: d.bbox,
-                    class: d.tower_type.index(),
+                    class: class(d.tower_type),
                     score: d.score as f32,
                 })
                 .collect();

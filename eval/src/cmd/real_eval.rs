@@ -73,6 +73,7 @@ pub fn evaluate(
     );
     let mut detector = YoloDetector::load_with_types(model, type_model, detector_options)?;
     let model_names: Vec<String> = detector.info().classes.clone();
+    let names_for_boxes = model_names.clone();
     let mut spent = 0.0;
     let mut runs = 0usize;
     let mut detect = |path: &Path, seq: u64| -> anyhow::Result<(Vec<Scored>, (f64, f64))> {
@@ -83,11 +84,15 @@ pub fn evaluate(
             .with_context(|| format!("detecting in {}", path.display()))?;
         spent += t0.elapsed().as_secs_f64() * 1e3;
         runs += 1;
+        // Class indices are the model's, in its class order.
         let boxes = dets
             .iter()
             .map(|d| Scored {
                 bbox: d.bbox,
-                class: d.tower_type.index(),
+                class: names_for_boxes
+                    .iter()
+                    .position(|n| n == d.tower_type.as_str())
+                    .unwrap_or(names_for_boxes.len()),
                 score: d.score as f32,
             })
             .collect();

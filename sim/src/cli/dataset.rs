@@ -293,17 +293,28 @@ fn write_labels(
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
     );
     for b in shot.truth.boxes.iter().filter(|b| b.labelled()) {
+        // Random worlds hold the four rendered designs, the dataset's classes.
+        let class = b.tower_type.rendered_index().with_context(|| {
+            format!(
+                "tower {} is of type {}, not one of A-D",
+                b.tower_id, b.tower_type
+            )
+        })?;
         let bbox = shot.lens.map_box(&b.bbox, iw, ih).clipped(iw, ih);
+        // The lens may bend or skew a tower at the edge out of the frame.
+        if bbox.width() < 1.0 || bbox.height() < 1.0 {
+            continue;
+        }
         writeln!(
             file,
             "{} {:.6} {:.6} {:.6} {:.6}",
-            b.tower_type.index(),
+            class,
             bbox.center_x() / iw,
             bbox.center_y() / ih,
             bbox.width() / iw,
             bbox.height() / ih
         )?;
-        counts[b.tower_type.index()] += 1;
+        counts[class] += 1;
     }
     file.flush()
         .with_context(|| format!("writing {}", path.display()))
@@ -315,7 +326,8 @@ fn write_data_yaml(out: &Path, seed: u64) -> anyhow::Result<()> {
         std::fs::canonicalize(out).with_context(|| format!("resolving {}", out.display()))?;
     let names: String = TowerType::ALL
         .iter()
-        .map(|t| format!("  {}: {}\n", t.index(), t))
+        .enumerate()
+        .map(|(i, t)| format!("  {i}: {t}\n"))
         .collect();
     let yaml = format!(
         "# Written by towernav-sim dataset --seed {seed}; worlds are split, never frames.\npath: {root}\ntrain: images/train\nval: images/val\ntest: images/test\nnames:\n{names}",

@@ -40,7 +40,8 @@ pub fn write_sequence(
                 b.bbox.top,
                 b.bbox.width(),
                 b.bbox.height(),
-                b.tower_type.index() + 1,
+                // MOT's class column: 1-4 for the rendered designs, 0 for any other.
+                b.tower_type.rendered_index().map_or(0, |i| i + 1),
                 1.0 - b.occluded
             )?;
         }

@@ -11,6 +11,7 @@ pub fn type_colour(t: TowerType) -> Rgb<u8> {
         TowerType::B => Rgb([255, 220, 0]),
         TowerType::C => Rgb([0, 220, 255]),
         TowerType::D => Rgb([255, 0, 255]),
+        _ => Rgb([255, 255, 255]),
     }
 }
 
