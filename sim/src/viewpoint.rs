@@ -1,6 +1,7 @@
 //! Random places to look at a world's towers from, for training sets: from
-//! just above the ground to 120 m, looking level or down, near and far, with
-//! the tower sometimes cut by the frame's edge.
+//! just above the ground to 120 m, looking level or down (to nearly straight
+//! down, as survey photos look), near and far, with the tower sometimes cut
+//! by the frame's edge.
 
 use nalgebra::Point3;
 use rand::Rng;
@@ -26,13 +27,18 @@ pub fn random_viewpoint(
     let tower = &world.towers[rng.random_range(0..world.towers.len())];
     // Log-uniform range: as many close views as far ones.
     let range = rng.random_range(15f64.ln()..450f64.ln()).exp();
+    // A fifth are from above, as a survey flight photographs a tower.
+    let above = rng.random_bool(0.2);
     let bearing = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
-    let eye = if rng.random_bool(0.2) {
+    let eye = if above {
+        (tower.height_m + rng.random_range(10.0..60.0)).min(EYE_HEIGHT_M.1)
+    } else if rng.random_bool(0.2) {
         rng.random_range(EYE_HEIGHT_M.0..10.0)
     } else {
         rng.random_range(10.0..EYE_HEIGHT_M.1)
     };
     let foot = tower.foot_in_world;
+    let range = if above { range.min(40.0) } else { range };
     let position_in_world = Point3::new(
         foot.x + range * bearing.cos(),
         foot.y + range * bearing.sin(),
@@ -42,11 +48,13 @@ pub fn random_viewpoint(
     let yaw = toward + rng.random_range(-0.6..0.6) * hfov;
     let aim = rng.random_range(0.0..tower.height_m);
     let look = ((aim - eye) / range).atan() + rng.random_range(-0.15..0.15);
+    // Lowest look: a little short of straight down (where yaw is undefined).
+    const STEEPEST: f64 = -1.5;
     Some(Pose {
         position_in_world,
         attitude: Attitude {
             roll: rng.random_range(-0.1..0.1),
-            pitch: look.clamp(-1.2, 0.15) - mount_pitch,
+            pitch: look.clamp(STEEPEST, 0.15) - mount_pitch,
             yaw,
         },
     })
@@ -68,7 +76,7 @@ mod tests {
             let pose = random_viewpoint(&world, 1.2, 0.0, &mut rng).expect("towers");
             let z = pose.position_in_world.z;
             assert!((EYE_HEIGHT_M.0..=EYE_HEIGHT_M.1).contains(&z), "{z}");
-            assert!((-1.2..=0.15).contains(&pose.attitude.pitch));
+            assert!((-1.5..=0.15).contains(&pose.attitude.pitch));
         }
         let empty = World {
             towers: Vec::new(),
