@@ -7,6 +7,7 @@
 //! frame, so a stalled camera still reports itself, acknowledges every
 //! correction and takes new landmarks.
 
+use hdrhistogram::Histogram;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -108,7 +109,8 @@ pub struct DaemonCore {
     frames_at_status: u64,
     troubles_at_status: u64,
     window_ms: Vec<f64>,
-    latency_ms: Vec<f64>,
+    /// Every processed frame's latency, microseconds, in fixed memory.
+    latency_us: Histogram<u64>,
     last_preview: Option<Instant>,
 }
 
@@ -131,7 +133,7 @@ impl DaemonCore {
             frames_at_status: 0,
             troubles_at_status: 0,
             window_ms: Vec::new(),
-            latency_ms: Vec::new(),
+            latency_us: latency_histogram(),
             last_preview: None,
         }
     }
@@ -188,7 +190,8 @@ impl DaemonCore {
         }
         let latency = now.saturating_duration_since(frame.captured).as_secs_f64() * 1e3;
         self.window_ms.push(latency);
-        self.latency_ms.push(latency);
+        // Past the histogram's hour the value is clamped, not lost.
+        self.latency_us.saturating_record((latency * 1e3) as u64);
         self.frames += 1;
         self.last_time_s = frame.time_s;
         self.last_frame_at = Some(now);
@@ -287,10 +290,26 @@ impl DaemonCore {
         self.poses
     }
 
-    /// Frame-to-publish latency of every processed frame, milliseconds.
-    pub fn latency_ms(&self) -> &[f64] {
-        &self.latency_ms
+    /// Frame-to-publish latency over every processed frame: p50 and p99 in
+    /// milliseconds (to 1 %), zeros before the first frame.
+    pub fn latency_percentiles(&self) -> (f64, f64) {
+        if self.latency_us.is_empty() {
+            return (0.0, 0.0);
+        }
+        let at = |q: f64| self.latency_us.value_at_quantile(q) as f64 / 1e3;
+        (at(0.5), at(0.99))
     }
+
+    /// Frames whose latency was recorded.
+    pub fn latency_count(&self) -> u64 {
+        self.latency_us.len()
+    }
+}
+
+/// 1 us to an hour at two significant digits: about 30 KB, whatever the run's length.
+fn latency_histogram() -> Histogram<u64> {
+    Histogram::new_with_bounds(1, 3_600_000_000, 2)
+        .unwrap_or_else(|_| Histogram::new(2).expect("two significant digits are valid"))
 }
 
 /// p50 and p99 of `values` (sorted in place); zeros when empty.

@@ -170,7 +170,7 @@ fn every_frame_sends_tracks_and_detections_and_previews_are_paced() {
     assert_eq!(count(|o| matches!(o, Output::Tracks(_))), 20);
     assert_eq!(count(|o| matches!(o, Output::Detections(_))), 20);
     assert_eq!(count(|o| matches!(o, Output::Preview { .. })), 4);
-    assert_eq!(core.latency_ms().len(), 20);
+    assert_eq!(core.latency_count(), 20);
 }
 
 #[test]
@@ -217,4 +217,23 @@ fn percentiles_of_nothing_are_zero() {
     assert_eq!(percentiles(&mut []), (0.0, 0.0));
     let mut v = [3.0, 1.0, 2.0];
     assert_eq!(percentiles(&mut v), (2.0, 3.0));
+}
+
+#[test]
+fn whole_run_latency_percentiles_hold_in_fixed_memory() {
+    let start = Instant::now();
+    let mut core = core(start, None);
+    assert_eq!(core.latency_percentiles(), (0.0, 0.0));
+    // Frames handled 1, 2, ... 100 ms after their capture.
+    for k in 1..=100u64 {
+        let captured = start + Duration::from_secs(k);
+        core.handle_frame(
+            captured + Duration::from_millis(k),
+            frame(k, captured, start),
+        );
+    }
+    let (p50, p99) = core.latency_percentiles();
+    assert!((p50 - 50.0).abs() <= 0.5, "{p50}");
+    assert!((p99 - 99.0).abs() <= 1.0, "{p99}");
+    assert_eq!(core.latency_count(), 100);
 }

@@ -172,8 +172,7 @@ impl DemoRun {
             scenario.world.towers.len(),
             config.source.seed
         );
-        let mut latency = summary.latency_ms.clone();
-        let (p50, p99) = towernav_core::daemon::percentiles(&mut latency);
+        let (p50, p99) = summary.latency_ms;
         println!(
             "latency            frame to publish p50 {p50:.1} ms, p99 {p99:.1} ms; {} frames dropped by the queue, {} failed",
             summary.dropped, summary.failed

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use nalgebra::Point3;
-use towernav_core::daemon::{DaemonConfig, DaemonCore, FrameObserver, percentiles};
+use towernav_core::daemon::{DaemonConfig, DaemonCore, FrameObserver};
 use towernav_core::detector::PostprocessParams;
 use towernav_core::localizer::Method;
 use towernav_core::pipeline::{Pipeline, PipelineConfig};
@@ -354,8 +354,7 @@ fn print_banner(config: &EdgeConfig, fleet: &NodeId) {
 }
 
 fn print_closing_line(summary: &RunSummary) {
-    let mut latency = summary.latency_ms.clone();
-    let (p50, p99) = percentiles(&mut latency);
+    let (p50, p99) = summary.latency_ms;
     println!(
         "flew {} frames, published {} poses; {:.1} frames/s; latency p50 {p50:.1} ms, p99 {p99:.1} ms; {} dropped, {} failed; peak RSS {}",
         summary.record.frames,

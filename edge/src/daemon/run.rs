@@ -62,7 +62,8 @@ pub struct Daemon<'a> {
 pub struct RunSummary {
     pub record: FlightRecord,
     /// Frame-to-publish latency of every processed frame, milliseconds.
-    pub latency_ms: Vec<f64>,
+    /// Frame-to-publish latency over the whole run, p50 and p99, milliseconds.
+    pub latency_ms: (f64, f64),
     pub dropped: u64,
     pub failed: u64,
     pub mavlink_sent: u64,
@@ -203,7 +204,7 @@ impl Daemon<'_> {
                     .then(|| options.detector_name.clone()),
                 ..sinks.record
             },
-            latency_ms: core.latency_ms().to_vec(),
+            latency_ms: core.latency_percentiles(),
         };
         log_stop(&summary, options.pacing);
         Ok(summary)
