@@ -1,5 +1,5 @@
 //! A fleet through one router: `n` simulated edges (oracle detector) connect
-//! to a router-mode Zenoh session, one subscriber behind the same router counts
+//! to a router-mode Zenoh session, a subscriber in the router itself counts
 //! every pose by UAV and sequence number and measures its age from the sender's
 //! timestamp. Shared by the fleet test and `cargo bench -p towernav-tests --bench fleet`.
 
@@ -12,7 +12,7 @@ use std::time::{Duration, SystemTime};
 use towernav_edge::daemon::config::{DetectorKind, EdgeConfig, ZenohMode};
 use towernav_edge::edge_cmd::run_edge;
 use towernav_ground_station::recording::Recorder;
-use towernav_protocol::session::{Endpoints, client_config, router_config};
+use towernav_protocol::session::{Endpoints, router_config};
 use towernav_protocol::{Keys, NodeId, PoseEstimate, Topic, decode};
 
 /// Pose sequence numbers per UAV, and pose ages in ms, as the subscriber saw them.
@@ -85,20 +85,16 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
     let endpoint = crate::loopback_endpoint();
     let fleet = "fleet";
     let err = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let _router = zenoh::open(router_config(&Endpoints {
+    let router = zenoh::open(router_config(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
     })?)
     .await
     .map_err(err)?;
-    let subscriber = zenoh::open(client_config(&Endpoints {
-        listen: vec![],
-        connect: vec![endpoint.clone()],
-    })?)
-    .await
-    .map_err(err)?;
+    // The subscriber lives in the router itself: it is in place the moment
+    // it is declared, before any edge connects, with nothing to wait for.
     let keys = Keys::new(NodeId::new(fleet)?);
-    let all = subscriber
+    let all = router
         .declare_subscriber(keys.all_uavs_any_topic())
         .await
         .map_err(err)?;
@@ -154,9 +150,6 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
             }
         }
     });
-    // Let the subscription reach the router before the edges start publishing.
-    tokio::time::sleep(Duration::from_millis(300)).await;
-
     let start = std::time::Instant::now();
     let mut tasks = Vec::new();
     for i in 0..options.edges {
@@ -180,7 +173,7 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
         poses_rx.wait_for(|n| *n >= expected),
     )
     .await;
-    drop(subscriber);
+    drop(router);
     let recorded = tokio::time::timeout(Duration::from_secs(5), reader).await;
     if let Ok(Ok(Err(e))) = recorded {
         anyhow::bail!("recording: {e}");
