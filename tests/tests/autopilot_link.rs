@@ -80,6 +80,8 @@ fn attitude_from_the_autopilot_is_read_in_enu() -> anyhow::Result<()> {
         ..ATTITUDE_DATA::DEFAULT
     });
     let start = Instant::now();
+    // An autopilot streams ATTITUDE (here at 20 Hz) whether or not anyone
+    // listens; this one streams until the edge has read one.
     loop {
         autopilot.send(&MavHeader::default(), &attitude)?;
         if let Some(a) = input.latest(Duration::from_secs(1)) {
