@@ -9,8 +9,9 @@ use std::time::Instant;
 use anyhow::Context;
 use comfy_table::Table;
 use serde::Serialize;
+use towernav_protocol::Detection;
 use towernav_protocol::TowerType;
-use towernav_sim::Scenario;
+use towernav_sim::{FrameTruth, Scenario};
 
 use crate::confusion::ConfusionMatrix;
 use crate::map_eval::{
@@ -122,6 +123,77 @@ pub struct Report {
     pub confusion: ConfusionMatrix,
 }
 
+/// Every table `evaluate` fills, one frame at a time.
+struct Tables {
+    all: MapAccumulator,
+    tall: MapAccumulator,
+    tall_any_type: MapAccumulator,
+    visible: MapAccumulator,
+    confusion: ConfusionMatrix,
+}
+
+impl Tables {
+    fn new(recall_score: f32) -> Self {
+        let classes = TowerType::ALL.len();
+        Self {
+            all: MapAccumulator::new(classes, recall_score),
+            tall: MapAccumulator::new(classes, recall_score),
+            tall_any_type: MapAccumulator::new(1, recall_score),
+            visible: MapAccumulator::new(classes, recall_score),
+            confusion: ConfusionMatrix::new(classes, recall_score, 0.5),
+        }
+    }
+
+    /// One frame's truth and the detector's boxes, into every table.
+    fn add_frame(&mut self, truth: &FrameTruth, dets: &[Detection]) {
+        // Rendered worlds hold the four rendered designs only; a type
+        // outside them (from a model with other classes) is a class
+        // past them, scored as wrong.
+        let class = |t: TowerType| t.rendered_index().unwrap_or(TowerType::ALL.len());
+        let labels: Vec<Labelled> = truth
+            .boxes
+            .iter()
+            .map(|b| Labelled {
+                bbox: b.bbox,
+                class: class(b.tower_type),
+            })
+            .collect();
+        let scored: Vec<Scored> = dets
+            .iter()
+            .map(|d| Scored {
+                bbox: d.bbox,
+                class: class(d.tower_type),
+                score: d.score as f32,
+            })
+            .collect();
+        // Towers with barely any structure in frame are in no table.
+        let unlabelled: Vec<bool> = truth.boxes.iter().map(|b| !b.labelled()).collect();
+        let (labels, scored) = restrict(&labels, &scored, 0.0, &unlabelled);
+        self.all.add_image(&labels, &scored);
+        let hidden: Vec<bool> = truth
+            .boxes
+            .iter()
+            .filter(|b| b.labelled())
+            .map(|b| b.truncated || b.occluded >= HIDDEN_SHARE)
+            .collect();
+        let (v_labels, v_scored) = restrict(&labels, &scored, TARGET_MIN_HEIGHT_PX, &hidden);
+        self.visible.add_image(&v_labels, &v_scored);
+        let (labels, scored) = restrict_to_height(&labels, &scored, TARGET_MIN_HEIGHT_PX);
+        self.tall.add_image(&labels, &scored);
+        self.confusion.add_image(&labels, &scored);
+        let (labels, scored) = one_type(&labels, &scored);
+        self.tall_any_type.add_image(&labels, &scored);
+    }
+}
+
+/// The `q` quantile of sorted `values`; NaN when there are none.
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    sorted
+        .get(((sorted.len() as f64 - 1.0) * q).round() as usize)
+        .copied()
+        .unwrap_or(f64::NAN)
+}
+
 /// Run `model` (and `type_model`, if any) over the held-out worlds and score it.
 pub fn evaluate(
     model: &Path,
@@ -130,12 +202,7 @@ pub fn evaluate(
     options: &DetectorEvalOptions,
 ) -> anyhow::Result<Report> {
     let mut detector = YoloDetector::load_with_types(model, type_model, detector_options)?;
-    let classes = TowerType::ALL.len();
-    let mut all = MapAccumulator::new(classes, options.recall_score);
-    let mut tall = MapAccumulator::new(classes, options.recall_score);
-    let mut tall_any_type = MapAccumulator::new(1, options.recall_score);
-    let mut visible = MapAccumulator::new(classes, options.recall_score);
-    let mut confusion = ConfusionMatrix::new(classes, options.recall_score, 0.5);
+    let mut tables = Tables::new(options.recall_score);
     let mut latencies = Vec::new();
     let progress = bar(options.worlds * options.frames_per_world, "eval-detector");
     for w in 0..options.worlds {
@@ -156,54 +223,19 @@ pub fn evaluate(
                 .detect(&buffers.image, seq)
                 .with_context(|| format!("world {world_seed}, frame {seq}"))?;
             latencies.push(t0.elapsed().as_secs_f64() * 1e3);
-            // Rendered worlds hold the four rendered designs only; a type
-            // outside them (from a model with other classes) is a class
-            // past them, scored as wrong.
-            let class = |t: TowerType| t.rendered_index().unwrap_or(classes);
-            let labels: Vec<Labelled> = truth
-                .boxes
-                .iter()
-                .map(|b| Labelled {
-                    bbox: b.bbox,
-                    class: class(b.tower_type),
-                })
-                .collect();
-            let scored: Vec<Scored> = dets
-                .iter()
-                .map(|d| Scored {
-                    bbox: d.bbox,
-                    class: class(d.tower_type),
-                    score: d.score as f32,
-                })
-                .collect();
-            // Towers with barely any structure in frame are in no table.
-            let unlabelled: Vec<bool> = truth.boxes.iter().map(|b| !b.labelled()).collect();
-            let (labels, scored) = restrict(&labels, &scored, 0.0, &unlabelled);
-            all.add_image(&labels, &scored);
-            let hidden: Vec<bool> = truth
-                .boxes
-                .iter()
-                .filter(|b| b.labelled())
-                .map(|b| b.truncated || b.occluded >= HIDDEN_SHARE)
-                .collect();
-            let (v_labels, v_scored) = restrict(&labels, &scored, TARGET_MIN_HEIGHT_PX, &hidden);
-            visible.add_image(&v_labels, &v_scored);
-            let (labels, scored) = restrict_to_height(&labels, &scored, TARGET_MIN_HEIGHT_PX);
-            tall.add_image(&labels, &scored);
-            confusion.add_image(&labels, &scored);
-            let (labels, scored) = one_type(&labels, &scored);
-            tall_any_type.add_image(&labels, &scored);
+            tables.add_frame(&truth, &dets);
             progress.inc(1);
         }
     }
     progress.finish_and_clear();
     latencies.sort_by(f64::total_cmp);
-    let at = |q: f64| {
-        latencies
-            .get(((latencies.len() as f64 - 1.0) * q).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
+    let Tables {
+        all,
+        tall,
+        tall_any_type,
+        visible,
+        confusion,
+    } = tables;
     let (all, tall, tall_any_type, visible) = (
         all.finish(),
         tall.finish(),
@@ -224,8 +256,8 @@ pub fn evaluate(
         taller_than_40px_visible: MetricsJson::from(&visible),
         confusion_taller_than_40px: confusion.rows().to_vec(),
         type_accuracy_of_found: confusion.type_accuracy_of_found(),
-        latency_ms_p50: at(0.5),
-        latency_ms_p99: at(0.99),
+        latency_ms_p50: quantile(&latencies, 0.5),
+        latency_ms_p99: quantile(&latencies, 0.99),
         latency_ms_mean: latencies.iter().sum::<f64>() / latencies.len().max(1) as f64,
     };
     Ok(Report {
