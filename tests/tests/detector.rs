@@ -18,6 +18,17 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// The models the daemon runs by default: the INT8 detector and type classifier.
+fn shipped_detector() -> YoloDetector {
+    let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models");
+    YoloDetector::load_with_types(
+        &models.join("towers-int8.onnx"),
+        Some(&models.join("tower-types-int8.onnx")),
+        &DetectorOptions::default(),
+    )
+    .expect("the shipped models load")
+}
+
 fn load(path: &std::path::Path) -> Result<YoloDetector, String> {
     YoloDetector::load(path, &DetectorOptions::default()).map_err(|e| e.to_string())
 }
@@ -191,13 +202,7 @@ fn an_empty_frame_is_an_error_naming_the_frame() {
 #[test]
 #[ignore = "the shipped models (mAP50 0.900 for towers >40 px, 0.934 for those in full view) still miss some clear towers (a 76 px B at t=120 s, not boxed): below the 0.95 target. Run with --ignored."]
 fn the_shipped_model_finds_the_towers_in_rendered_frames() {
-    let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models");
-    let mut detector = YoloDetector::load_with_types(
-        &models.join("towers-int8.onnx"),
-        Some(&models.join("tower-types-int8.onnx")),
-        &DetectorOptions::default(),
-    )
-    .expect("the shipped models load");
+    let mut detector = shipped_detector();
     let scenario = Scenario::preset(World::paper_field(), "paper-path-1", 3).expect("preset");
     let renderer = scenario.renderer();
     let mut buffers = renderer.buffers();
@@ -337,13 +342,7 @@ fn the_shipped_model_boxes_almost_nothing_on_real_tower_free_frames() {
     use towernav_eval::cmd::real_eval::load_upright;
     use towernav_eval::image_folder::images_under;
     let Some(real) = real_photos() else { return };
-    let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models");
-    let mut detector = YoloDetector::load_with_types(
-        &models.join("towers-int8.onnx"),
-        Some(&models.join("tower-types-int8.onnx")),
-        &DetectorOptions::default(),
-    )
-    .expect("the shipped models load");
+    let mut detector = shipped_detector();
     let paths = images_under(&real.join("pld_uav_negatives/PLDM")).expect("the frames");
     let mut boxed = Vec::new();
     for (seq, path) in paths.iter().enumerate() {
@@ -378,13 +377,7 @@ fn the_shipped_model_finds_the_lattice_towers_of_real_photographs() {
     use towernav_eval::cmd::real_eval::load_upright;
     use towernav_eval::image_folder::ImageFolder;
     let Some(real) = real_photos() else { return };
-    let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models");
-    let mut detector = YoloDetector::load_with_types(
-        &models.join("towers-int8.onnx"),
-        Some(&models.join("tower-types-int8.onnx")),
-        &DetectorOptions::default(),
-    )
-    .expect("the shipped models load");
+    let mut detector = shipped_detector();
     let names: Vec<String> = ["tower_lattice", "tower_tucohy", "tower_wooden"]
         .map(String::from)
         .to_vec();

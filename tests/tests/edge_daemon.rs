@@ -276,37 +276,11 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_corrupt_frame_is_skipped_and_counted_and_the_rest_are_processed() -> anyhow::Result<()> {
     let dir = tempfile::tempdir()?;
-    let frames = dir.path().join("frames");
-    std::fs::create_dir_all(&frames)?;
-    for i in 0..4 {
-        image::RgbImage::from_pixel(128, 64, image::Rgb([255, 255, 255]))
-            .save(frames.join(format!("f{i}.png")))?;
-    }
-    std::fs::write(frames.join("f2b.png"), b"not a png at all")?;
+    let mut c = frames_and_towers(dir.path(), "fake-v8-towers.onnx")?;
     std::fs::write(
-        dir.path().join("att.csv"),
-        "time_s,roll_deg,pitch_deg,heading_deg\n0,0,0,90\n10,0,0,90\n",
+        dir.path().join("frames").join("f2b.png"),
+        b"not a png at all",
     )?;
-    let world = Scenario::paper(1).world;
-    let towers = dir.path().join("towers.csv");
-    towernav_landmark_db::export_csv(&world.landmarks(), std::fs::File::create(&towers)?)?;
-    let mut c = EdgeConfig {
-        fleet: "corrupt".into(),
-        ..EdgeConfig::default()
-    };
-    c.zenoh.listen = vec![towernav_tests::loopback_endpoint()];
-    c.source.kind = SourceKind::Images;
-    c.source.path = Some(frames.display().to_string());
-    c.source.width = 128;
-    c.source.height = 64;
-    c.source.speed = Some(0.0);
-    c.attitude.kind = AttitudeKind::Csv;
-    c.attitude.path = Some(dir.path().join("att.csv"));
-    c.detector.model =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/fake-v8-towers.onnx");
-    c.detector.classify_types = false;
-    c.landmarks.file = Some(towers);
-    c.pipeline.takeoff = Some([world.datum.origin.lat_deg, world.datum.origin.lon_deg, 30.0]);
     c.output.annotated = Some(dir.path().join("annotated"));
     let summary = run_edge(&c, None, Arc::new(AtomicBool::new(false))).await?;
     assert_eq!(summary.failed, 1, "the corrupt file");

@@ -111,11 +111,7 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         .arg(&types_dir)
         .arg(root.join("training").join("quantize.py"))
         // The quantizer's own arguments, "$@" after `shift 9`.
-        .args(if options.detector_only {
-            quantize_args(&work)[..4].to_vec()
-        } else {
-            quantize_args(&work)
-        })
+        .args(quantize_args(&work, !options.detector_only))
         .env("OMP_WAIT_POLICY", "PASSIVE")
         .current_dir(root);
     if options.foreground {
@@ -148,20 +144,26 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `training/quantize.py`'s arguments for the run in `work`: both exports,
-/// calibrated on their own training inputs.
-fn quantize_args(work: &Path) -> Vec<PathBuf> {
-    let types = work.join("types");
-    vec![
+/// `training/quantize.py`'s arguments for the run in `work`: the detector's
+/// export and, `with_types`, the classifier's, each calibrated on its own
+/// training inputs.
+fn quantize_args(work: &Path, with_types: bool) -> Vec<PathBuf> {
+    let mut args: Vec<PathBuf> = vec![
         "--detector".into(),
         work.join("run").join("towers.onnx"),
         "--frames".into(),
         work.join("dataset").join("images").join("train"),
-        "--types".into(),
-        types.join("tower-types.onnx"),
-        "--crops".into(),
-        types.join("crops").join("train"),
-    ]
+    ];
+    if with_types {
+        let types = work.join("types");
+        args.extend([
+            "--types".into(),
+            types.join("tower-types.onnx"),
+            "--crops".into(),
+            types.join("crops").join("train"),
+        ]);
+    }
+    args
 }
 
 /// `cargo xtask quantize`: INT8 versions of the finished run's two models,
@@ -171,7 +173,7 @@ pub fn quantize(root: &Path) -> anyhow::Result<()> {
     let work = target_dir(root).join("train");
     run(Command::new(python)
         .arg(root.join("training").join("quantize.py"))
-        .args(quantize_args(&work))
+        .args(quantize_args(&work, true))
         .current_dir(root))
 }
 

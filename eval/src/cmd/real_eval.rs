@@ -45,13 +45,12 @@ pub struct RealEval {
 
 /// Decode `path` upright (its EXIF orientation applied, as labelling tools show it).
 pub fn load_upright(path: &Path) -> anyhow::Result<image::RgbImage> {
-    let decoder = ImageReader::open(path)
+    let mut decoder = ImageReader::open(path)
         .with_context(|| format!("opening {}", path.display()))?
         .with_guessed_format()
         .with_context(|| format!("reading {}", path.display()))?
         .into_decoder()
         .with_context(|| format!("decoding {}", path.display()))?;
-    let mut decoder = decoder;
     let orientation = decoder
         .orientation()
         .with_context(|| format!("reading the orientation of {}", path.display()))?;
