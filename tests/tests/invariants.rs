@@ -186,3 +186,65 @@ fn the_simulator_library_touches_no_files() {
         }
     }
 }
+
+/// Features of each third-party package in a `cargo tree` (host and target merged).
+fn dependency_features(args: &[&str]) -> std::collections::BTreeMap<String, String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = std::process::Command::new(cargo)
+        .current_dir(root())
+        .args(["tree", "--offline", "--prefix", "none", "-f", "{p}|{f}"])
+        .args(args)
+        .output()
+        .expect("cargo tree runs");
+    assert!(
+        out.status.success(),
+        "cargo tree {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut features =
+        std::collections::BTreeMap::<String, std::collections::BTreeSet<String>>::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let Some((package, list)) = line.split_once('|') else {
+            continue;
+        };
+        // Path packages print their directory; only registry crates are shared artifacts.
+        if package.contains('(') {
+            continue;
+        }
+        let list = list.trim_end_matches(" (*)");
+        features.entry(package.to_string()).or_default().extend(
+            list.split(',')
+                .filter(|f| !f.is_empty())
+                .map(str::to_string),
+        );
+    }
+    features
+        .into_iter()
+        .map(|(k, v)| (k, v.into_iter().collect::<Vec<_>>().join(",")))
+        .collect()
+}
+
+/// `cargo xtask test` lints the onboard daemon after the workspace: with equal
+/// dependency features it reuses the workspace's checked crates instead of
+/// checking a third of them again (`build-unify/` asks for the features).
+#[test]
+fn the_onboard_build_shares_the_workspace_s_dependency_features() {
+    let onboard = dependency_features(&["-p", "towernav-edge", "-e", "normal,build"]);
+    let workspace = dependency_features(&["--workspace", "-e", "normal,build,dev"]);
+    assert!(onboard.len() > 100, "{} packages", onboard.len());
+    let differing: Vec<String> = onboard
+        .iter()
+        .filter(|(package, features)| workspace.get(*package) != Some(*features))
+        .map(|(package, features)| {
+            format!(
+                "{package}: onboard [{features}], workspace [{}]",
+                workspace.get(package).map_or("absent", String::as_str)
+            )
+        })
+        .collect();
+    assert!(
+        differing.is_empty(),
+        "add these features to build-unify/Cargo.toml:\n{}",
+        differing.join("\n")
+    );
+}
