@@ -116,6 +116,44 @@ impl MotAccumulator {
                 }
             }
         }
+        let (matched_gt, hyp_taken) = self.correspondences(truth, hyps);
+        for (gi, (g, _)) in truth.iter().enumerate() {
+            let entry = self.last.entry(g.clone()).or_insert((None, false));
+            match matched_gt[gi] {
+                Some(hi) => {
+                    let h = &hyps[hi];
+                    if let Some(prev) = &entry.0
+                        && prev != &h.id
+                    {
+                        self.id_switches += 1;
+                    }
+                    if entry.0.is_some() && !entry.1 {
+                        self.fragmentations += 1;
+                    }
+                    *entry = (Some(h.id.clone()), true);
+                    self.count_match(g, h);
+                }
+                None => {
+                    self.misses += 1;
+                    entry.1 = false;
+                }
+            }
+        }
+        for (hi, h) in hyps.iter().enumerate() {
+            if !hyp_taken[hi] {
+                self.false_positives += 1;
+                self.bound_frames += usize::from(h.tower.is_some());
+            }
+        }
+    }
+
+    /// Which hypothesis covers each true tower this frame, and which
+    /// hypotheses are taken.
+    fn correspondences(
+        &self,
+        truth: &[(String, PixelBox)],
+        hyps: &[Hypothesis],
+    ) -> (Vec<Option<usize>>, Vec<bool>) {
         // CLEAR MOT: keep last frame's correspondences that still overlap, then Hungarian.
         let mut matched_gt = vec![None; truth.len()];
         let mut hyp_taken = vec![false; hyps.len()];
@@ -145,46 +183,24 @@ impl MotAccumulator {
             matched_gt[free_gt[r]] = Some(free_hyp[c]);
             hyp_taken[free_hyp[c]] = true;
         }
-        for (gi, (g, _)) in truth.iter().enumerate() {
-            let entry = self.last.entry(g.clone()).or_insert((None, false));
-            match matched_gt[gi] {
-                Some(hi) => {
-                    let h = &hyps[hi];
-                    if let Some(prev) = &entry.0
-                        && prev != &h.id
-                    {
-                        self.id_switches += 1;
-                    }
-                    if entry.0.is_some() && !entry.1 {
-                        self.fragmentations += 1;
-                    }
-                    *entry = (Some(h.id.clone()), true);
-                    self.hyp_to_gt
-                        .entry(h.id.clone())
-                        .or_default()
-                        .insert(g.clone());
-                    self.gt_to_hyp
-                        .entry(g.clone())
-                        .or_default()
-                        .insert(h.id.clone());
-                    self.matched_frames += 1;
-                    if let Some(t) = &h.tower {
-                        self.matched_bound += 1;
-                        self.bound_frames += 1;
-                        self.bound_right += usize::from(t == g);
-                    }
-                }
-                None => {
-                    self.misses += 1;
-                    entry.1 = false;
-                }
-            }
-        }
-        for (hi, h) in hyps.iter().enumerate() {
-            if !hyp_taken[hi] {
-                self.false_positives += 1;
-                self.bound_frames += usize::from(h.tower.is_some());
-            }
+        (matched_gt, hyp_taken)
+    }
+
+    /// A true tower `g` covered by `h`: the identity maps and the binding counts.
+    fn count_match(&mut self, g: &str, h: &Hypothesis) {
+        self.hyp_to_gt
+            .entry(h.id.clone())
+            .or_default()
+            .insert(g.to_string());
+        self.gt_to_hyp
+            .entry(g.to_string())
+            .or_default()
+            .insert(h.id.clone());
+        self.matched_frames += 1;
+        if let Some(t) = &h.tower {
+            self.matched_bound += 1;
+            self.bound_frames += 1;
+            self.bound_right += usize::from(t == g);
         }
     }
 

@@ -6,6 +6,7 @@ use egui::{Color32, Rect, Sense, Stroke, pos2, vec2};
 use towernav_protocol::{NodeId, Track};
 
 use crate::corrections::{CorrectionState, Corrections};
+use crate::events::DecodedPreview;
 use crate::fleet::UavView;
 use crate::map_view::MapTower;
 
@@ -76,79 +77,12 @@ pub fn show(
             ui.label("No preview yet.");
         }
         Some(preview) => {
-            let stale_texture = state
-                .texture
-                .as_ref()
-                .is_none_or(|(u, seq, _)| u != uav || *seq != preview.meta.seq);
-            if stale_texture {
-                let image = egui::ImageData::Color(preview.image.clone());
-                match state.texture.as_mut().filter(|(u, _, _)| u == uav) {
-                    Some((_, seq, tex)) => {
-                        tex.set(image, egui::TextureOptions::LINEAR);
-                        *seq = preview.meta.seq;
-                    }
-                    None => {
-                        let tex = ui.ctx().load_texture(
-                            format!("preview {uav}"),
-                            image,
-                            egui::TextureOptions::LINEAR,
-                        );
-                        state.texture = Some((uav.clone(), preview.meta.seq, tex));
-                    }
-                }
-            }
-            let (fw, fh) = (
-                f64::from(preview.meta.frame_width.max(1)),
-                f64::from(preview.meta.frame_height.max(1)),
-            );
-            let width = ui.available_width().max(64.0);
-            let height = width * (fh / fw) as f32;
-            let (rect, _) = ui.allocate_exact_size(vec2(width, height), Sense::hover());
-            if let Some((_, _, tex)) = &state.texture {
-                ui.painter().image(
-                    tex.id(),
-                    rect,
-                    Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0)),
-                    Color32::WHITE,
-                );
-            }
-            let scale = f64::from(width) / fw;
+            upload(ui, state, uav, preview);
+            let rect = frame(ui, state, preview);
+            let scale = f64::from(rect.width()) / f64::from(preview.meta.frame_width.max(1));
             let tracks = view.tracks_near(preview.meta.seq);
             for track in tracks.iter().flat_map(|t| &t.tracks) {
-                let b = &track.bbox;
-                let r = Rect::from_min_max(
-                    rect.min + vec2((b.left * scale) as f32, (b.top * scale) as f32),
-                    rect.min + vec2((b.right * scale) as f32, (b.bottom * scale) as f32),
-                );
-                let color = binding_color(track);
-                let label = track_label(track);
-                let response = ui
-                    .interact(
-                        r,
-                        ui.scope_id().with(("track", track.track_id)),
-                        Sense::click(),
-                    )
-                    .on_hover_text(match track.confidence {
-                        Some(c) => format!("binding confidence {c:.2}; click to correct"),
-                        None => "unbound; click to bind".into(),
-                    });
-                response
-                    .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, &label));
-                let stroke = if response.hovered() { 3.0 } else { 2.0 };
-                ui.painter().rect_stroke(
-                    r,
-                    0.0,
-                    Stroke::new(stroke, color),
-                    egui::StrokeKind::Outside,
-                );
-                ui.painter().text(
-                    r.left_top() - vec2(0.0, 2.0),
-                    egui::Align2::LEFT_BOTTOM,
-                    &label,
-                    egui::FontId::proportional(12.0),
-                    color,
-                );
-                if response.clicked() {
+                if track_box(ui, track, rect, scale) {
                     state.picking = Some(Picking {
                         uav: uav.clone(),
                         track_id: track.track_id,
@@ -181,6 +115,90 @@ pub fn show(
         action = Some(CameraAction::Undo(undo));
     }
     action
+}
+
+/// Uploads the preview as a texture unless it is the one already shown.
+fn upload(ui: &egui::Ui, state: &mut CameraState, uav: &NodeId, preview: &DecodedPreview) {
+    let stale_texture = state
+        .texture
+        .as_ref()
+        .is_none_or(|(u, seq, _)| u != uav || *seq != preview.meta.seq);
+    if !stale_texture {
+        return;
+    }
+    let image = egui::ImageData::Color(preview.image.clone());
+    match state.texture.as_mut().filter(|(u, _, _)| u == uav) {
+        Some((_, seq, tex)) => {
+            tex.set(image, egui::TextureOptions::LINEAR);
+            *seq = preview.meta.seq;
+        }
+        None => {
+            let tex = ui.ctx().load_texture(
+                format!("preview {uav}"),
+                image,
+                egui::TextureOptions::LINEAR,
+            );
+            state.texture = Some((uav.clone(), preview.meta.seq, tex));
+        }
+    }
+}
+
+/// Paints the preview at the panel's width, in the frame's aspect; returns where.
+fn frame(ui: &mut egui::Ui, state: &CameraState, preview: &DecodedPreview) -> Rect {
+    let (fw, fh) = (
+        f64::from(preview.meta.frame_width.max(1)),
+        f64::from(preview.meta.frame_height.max(1)),
+    );
+    let width = ui.available_width().max(64.0);
+    let height = width * (fh / fw) as f32;
+    let (rect, _) = ui.allocate_exact_size(vec2(width, height), Sense::hover());
+    if let Some((_, _, tex)) = &state.texture {
+        ui.painter().image(
+            tex.id(),
+            rect,
+            Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0)),
+            Color32::WHITE,
+        );
+    }
+    rect
+}
+
+/// One track's box and label over the frame at `scale` screen px per frame px;
+/// true when the operator clicked it.
+fn track_box(ui: &mut egui::Ui, track: &Track, frame: Rect, scale: f64) -> bool {
+    let b = &track.bbox;
+    let r = Rect::from_min_max(
+        frame.min + vec2((b.left * scale) as f32, (b.top * scale) as f32),
+        frame.min + vec2((b.right * scale) as f32, (b.bottom * scale) as f32),
+    );
+    let color = binding_color(track);
+    let label = track_label(track);
+    let response = ui
+        .interact(
+            r,
+            ui.scope_id().with(("track", track.track_id)),
+            Sense::click(),
+        )
+        .on_hover_text(match track.confidence {
+            Some(c) => format!("binding confidence {c:.2}; click to correct"),
+            None => "unbound; click to bind".into(),
+        });
+    response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, &label));
+    let stroke = if response.hovered() { 3.0 } else { 2.0 };
+    ui.painter().rect_stroke(
+        r,
+        0.0,
+        Stroke::new(stroke, color),
+        egui::StrokeKind::Outside,
+    );
+    ui.painter().text(
+        r.left_top() - vec2(0.0, 2.0),
+        egui::Align2::LEFT_BOTTOM,
+        &label,
+        egui::FontId::proportional(12.0),
+        color,
+    );
+    response.clicked()
 }
 
 /// The tower chooser: search by id; returns (what to send, cancelled).

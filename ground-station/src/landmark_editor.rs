@@ -335,9 +335,47 @@ fn form(
     });
     let result = state.form.record(base);
     let errors = result.as_ref().err().cloned().unwrap_or_default();
-    let error = |field: &str| errors.iter().find(|(f, _)| *f == field).map(|(_, e)| e);
-    let f = &mut state.form;
     let editing = state.editing.is_some();
+    form_fields(ui, &mut state.form, editing, records, &errors);
+    // Errors on fields the form has no box for (e.g. base width) still show.
+    for (f, e) in errors.iter().filter(|(f, _)| !BOXED_FIELDS.contains(f)) {
+        ui.colored_label(Color32::RED, format!("{f} {e}"));
+    }
+    let action = form_buttons(ui, state, records, &result);
+    if let Some((ok, text)) = &state.message {
+        ui.colored_label(
+            if *ok {
+                Color32::LIGHT_GREEN
+            } else {
+                Color32::RED
+            },
+            text,
+        );
+    }
+    action
+}
+
+/// The record fields that have a box in the form, so their errors show beside it.
+const BOXED_FIELDS: [&str; 9] = [
+    "id",
+    "tower_type",
+    "lat_deg",
+    "lon_deg",
+    "ground_elev_m",
+    "height_m",
+    "line_name",
+    "survey_source",
+    "notes",
+];
+
+fn form_fields(
+    ui: &mut egui::Ui,
+    f: &mut Form,
+    editing: bool,
+    records: &[LandmarkRecord],
+    errors: &[(&'static str, String)],
+) {
+    let error = |field: &str| errors.iter().find(|(f, _)| *f == field).map(|(_, e)| e);
     egui::Grid::new("landmark fields")
         .num_columns(2)
         .show(ui, |ui| {
@@ -350,26 +388,7 @@ fn form(
                 field(ui, "Id", &mut f.id, error("id"));
             }
             field(ui, "Type", &mut f.tower_type, error("tower_type"));
-            // The types already in the database, one click away.
-            let mut known: Vec<TowerType> = records.iter().map(|r| r.tower_type).collect();
-            known.sort();
-            known.dedup();
-            if !known.is_empty() {
-                ui.label("");
-                egui::ComboBox::new("known tower types", "known types")
-                    .selected_text(f.tower_type.as_str())
-                    .show_ui(ui, |ui| {
-                        for t in known {
-                            if ui
-                                .selectable_label(f.tower_type == t.as_str(), t.as_str())
-                                .clicked()
-                            {
-                                f.tower_type = t.to_string();
-                            }
-                        }
-                    });
-                ui.end_row();
-            }
+            known_types(ui, &mut f.tower_type, records);
             field(ui, "Latitude (deg)", &mut f.lat, error("lat_deg"));
             field(ui, "Longitude (deg)", &mut f.lon, error("lon_deg"));
             field(
@@ -388,23 +407,42 @@ fn form(
             );
             field(ui, "Notes", &mut f.notes, error("notes"));
         });
-    // Errors on fields the form has no box for (e.g. base width) still show.
-    let boxed = [
-        "id",
-        "lat_deg",
-        "lon_deg",
-        "ground_elev_m",
-        "height_m",
-        "line_name",
-        "survey_source",
-        "notes",
-    ];
-    for (f, e) in errors.iter().filter(|(f, _)| !boxed.contains(f)) {
-        ui.colored_label(Color32::RED, format!("{f} {e}"));
+}
+
+/// The types already in the database, one click away from the type's box.
+fn known_types(ui: &mut egui::Ui, tower_type: &mut String, records: &[LandmarkRecord]) {
+    let mut known: Vec<TowerType> = records.iter().map(|r| r.tower_type).collect();
+    known.sort();
+    known.dedup();
+    if known.is_empty() {
+        return;
     }
+    ui.label("");
+    egui::ComboBox::new("known tower types", "known types")
+        .selected_text(tower_type.as_str())
+        .show_ui(ui, |ui| {
+            for t in known {
+                if ui
+                    .selectable_label(tower_type == t.as_str(), t.as_str())
+                    .clicked()
+                {
+                    *tower_type = t.to_string();
+                }
+            }
+        });
+    ui.end_row();
+}
+
+/// Save or Add, New, and Delete with its confirmation.
+fn form_buttons(
+    ui: &mut egui::Ui,
+    state: &mut EditorState,
+    records: &[LandmarkRecord],
+    result: &Result<LandmarkRecord, FieldErrors>,
+) -> Option<EditorAction> {
     let mut action = None;
     ui.horizontal(|ui| {
-        let renaming_over = match (&state.editing, &result) {
+        let renaming_over = match (&state.editing, result) {
             (None, Ok(r)) => records.iter().any(|x| x.id == r.id),
             _ => false,
         };
@@ -418,7 +456,7 @@ fn form(
             ui.colored_label(Color32::RED, "that id is taken");
         }
         if save.clicked()
-            && let Ok(r) = &result
+            && let Ok(r) = result
         {
             let expect = match (&state.editing, state.editing_revision) {
                 (Some(id), Some(rev)) if *id == r.id => towernav_landmark_db::Expect::Revision(rev),
@@ -445,16 +483,6 @@ fn form(
             }
         }
     });
-    if let Some((ok, text)) = &state.message {
-        ui.colored_label(
-            if *ok {
-                Color32::LIGHT_GREEN
-            } else {
-                Color32::RED
-            },
-            text,
-        );
-    }
     action
 }
 

@@ -63,46 +63,25 @@ fn main() -> anyhow::Result<()> {
         )
         .init();
     let cli = Cli::parse();
-    let mut db = LandmarkDb::open(&cli.db)?;
-    if let Some(csv) = &cli.import {
-        let n = import_csv(&mut db, csv, &Author::now(&cli.operator))?;
-        tracing::info!(towers = n, file = %csv.display(), "imported");
-    }
-    if db.list()?.is_empty() {
-        tracing::warn!(db = %cli.db.display(), "no towers yet: add them in the Landmarks tab or with --import");
-    }
+    let db = open_database(&cli)?;
     let endpoints = Endpoints {
         listen: cli.listen.clone(),
         connect: cli.connect.clone(),
     };
-    let listening_on = cli
-        .connect
-        .iter()
-        .chain(&cli.listen)
-        .cloned()
-        .collect::<Vec<_>>()
-        .join(", ");
-    let first_request_id = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(1, |d| u64::try_from(d.as_millis()).unwrap_or(1));
-    let options = GsOptions {
-        listening_on,
-        operator: cli.operator.clone(),
-        first_request_id,
-        tiles: cli.tiles.clone(),
-        replaying: cli.replay.clone(),
-    };
+    let options = gs_options(&cli);
     if let Some(path) = &cli.replay {
         // Refuse a bad recording before opening a window.
         recording::read(path)?;
     }
     let db_path = cli.db.clone();
     let start = Instant::now();
-    let quit_after_s = cli.quit_after_s;
-    let screenshot = cli.screenshot.clone();
     let continuous = cli.continuous;
-    let shot_done = Arc::new(AtomicBool::new(false));
-    let mut shot_requested = false;
+    let mut exit = Exit {
+        quit_after_s: cli.quit_after_s,
+        screenshot: cli.screenshot.clone(),
+        shot_requested: false,
+        shot_done: Arc::new(AtomicBool::new(false)),
+    };
     let mut frames = FrameStats::default();
     eframe::run_native(
         "towernav ground station",
@@ -132,26 +111,7 @@ fn main() -> anyhow::Result<()> {
                 let drawn = Instant::now();
                 app.show(ui, now);
                 frames.add(now, drawn.elapsed().as_secs_f64());
-                let quitting = quit_after_s.is_some_and(|q| now > q);
-                match (&screenshot, quitting) {
-                    (Some(path), true) if !shot_requested => {
-                        shot_requested = true;
-                        let (path, done) = (path.clone(), shot_done.clone());
-                        ui.ctx()
-                            .send_viewport_cmd(egui::ViewportCommand::Screenshot(
-                                egui::ScreenshotCallback::new(move |image| {
-                                    save_png(&path, &image);
-                                    done.store(true, Ordering::Relaxed);
-                                }),
-                            ));
-                    }
-                    (Some(_), true) if !shot_done.load(Ordering::Relaxed) => {}
-                    (_, true) => {
-                        frames.log();
-                        ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
-                    }
-                    _ => {}
-                }
+                let quitting = exit.after_frame(ui.ctx(), now, &mut frames);
                 if continuous || quitting {
                     ui.ctx().request_repaint();
                 } else {
@@ -163,6 +123,75 @@ fn main() -> anyhow::Result<()> {
         }),
     )
     .map_err(|e| anyhow::anyhow!("ground station window: {e}"))
+}
+
+/// Opens the landmark database, importing `--import` first.
+fn open_database(cli: &Cli) -> anyhow::Result<LandmarkDb> {
+    let mut db = LandmarkDb::open(&cli.db)?;
+    if let Some(csv) = &cli.import {
+        let n = import_csv(&mut db, csv, &Author::now(&cli.operator))?;
+        tracing::info!(towers = n, file = %csv.display(), "imported");
+    }
+    if db.list()?.is_empty() {
+        tracing::warn!(db = %cli.db.display(), "no towers yet: add them in the Landmarks tab or with --import");
+    }
+    Ok(db)
+}
+
+fn gs_options(cli: &Cli) -> GsOptions {
+    let listening_on = cli
+        .connect
+        .iter()
+        .chain(&cli.listen)
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(", ");
+    // Request ids start at the clock, so a restarted station never reuses one.
+    let first_request_id = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(1, |d| u64::try_from(d.as_millis()).unwrap_or(1));
+    GsOptions {
+        listening_on,
+        operator: cli.operator.clone(),
+        first_request_id,
+        tiles: cli.tiles.clone(),
+        replaying: cli.replay.clone(),
+    }
+}
+
+/// `--quit-after-s` and `--screenshot`: when to close, and the PNG taken first.
+struct Exit {
+    quit_after_s: Option<f64>,
+    screenshot: Option<PathBuf>,
+    shot_requested: bool,
+    shot_done: Arc<AtomicBool>,
+}
+
+impl Exit {
+    /// After each frame: asks for the screenshot, then closes once it is saved.
+    /// True while quitting, so frames keep coming until the window closes.
+    fn after_frame(&mut self, ctx: &egui::Context, now: f64, frames: &mut FrameStats) -> bool {
+        let quitting = self.quit_after_s.is_some_and(|q| now > q);
+        match (&self.screenshot, quitting) {
+            (Some(path), true) if !self.shot_requested => {
+                self.shot_requested = true;
+                let (path, done) = (path.clone(), self.shot_done.clone());
+                ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(
+                    egui::ScreenshotCallback::new(move |image| {
+                        save_png(&path, &image);
+                        done.store(true, Ordering::Relaxed);
+                    }),
+                ));
+            }
+            (Some(_), true) if !self.shot_done.load(Ordering::Relaxed) => {}
+            (_, true) => {
+                frames.log();
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+            _ => {}
+        }
+        quitting
+    }
 }
 
 fn save_png(path: &std::path::Path, image: &egui::ColorImage) {

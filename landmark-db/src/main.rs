@@ -261,60 +261,69 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 .ok_or_else(|| refused(format!("no tower {id:?} in {}", cli.db.display())))?;
             println!("{}", serde_json_pretty(&r));
         }
-        Command::Add(args) => {
-            let mut r = LandmarkRecord::new(
-                args.id,
-                args.tower_type,
-                args.lat,
-                args.lon,
-                args.elev,
-                args.height,
-            );
-            args.optional.apply(&mut r);
-            validate(&r)?;
-            // Refused inside the write if the id exists, also when a
-            // concurrent writer added it a moment ago.
-            let revision = db.upsert_expecting(&r, Expect::Absent, &author)?;
-            println!("added {} at revision {revision}", r.id);
-            warn_likely_mistakes(&db, &r)?;
-        }
-        Command::Edit(args) => {
-            let id = args.id.clone();
-            // Read, change and write under one write lock: a concurrent edit
-            // of another field is kept, not overwritten.
-            let edited = db.edit(&id, &author, |r| {
-                r.tower_type = args.tower_type.unwrap_or(r.tower_type);
-                r.lat_deg = args.lat.unwrap_or(r.lat_deg);
-                r.lon_deg = args.lon.unwrap_or(r.lon_deg);
-                r.ground_elev_m = args.elev.unwrap_or(r.ground_elev_m);
-                r.height_m = args.height.unwrap_or(r.height_m);
-                args.optional.apply(r);
-                Ok::<(), std::convert::Infallible>(())
-            })?;
-            let Some(Ok((r, revision))) = edited else {
-                return Err(refused(format!("no tower {id:?}; use `add`")));
-            };
-            println!("edited {} at revision {revision}", r.id);
-            warn_likely_mistakes(&db, &r)?;
-        }
+        Command::Add(args) => add(&mut db, args, &author)?,
+        Command::Edit(args) => edit(&mut db, args, &author)?,
         Command::Remove { id } => match db.remove(&id, &author)? {
             Some(rev) => println!("removed {id} at revision {rev}"),
             None => return Err(refused(format!("no tower {id:?} to remove"))),
         },
-        Command::History { since } => {
-            for c in db.changes_since(since)? {
-                match c.change {
-                    LandmarkChangeOp::Upsert { record } => println!(
-                        "r{:<6} {}  upsert {:<10} by {}",
-                        c.revision,
-                        utc(record.updated_at_unix_s),
-                        record.id,
-                        record.updated_by
-                    ),
-                    LandmarkChangeOp::Remove { id } => {
-                        println!("r{:<6} {:20}  remove {id}", c.revision, "")
-                    }
-                }
+        Command::History { since } => history(&db, since)?,
+    }
+    Ok(())
+}
+
+fn add(db: &mut LandmarkDb, args: RecordArgs, author: &Author) -> Result<(), Failure> {
+    let mut r = LandmarkRecord::new(
+        args.id,
+        args.tower_type,
+        args.lat,
+        args.lon,
+        args.elev,
+        args.height,
+    );
+    args.optional.apply(&mut r);
+    validate(&r)?;
+    // Refused inside the write if the id exists, also when a
+    // concurrent writer added it a moment ago.
+    let revision = db.upsert_expecting(&r, Expect::Absent, author)?;
+    println!("added {} at revision {revision}", r.id);
+    warn_likely_mistakes(db, &r)?;
+    Ok(())
+}
+
+fn edit(db: &mut LandmarkDb, args: EditArgs, author: &Author) -> Result<(), Failure> {
+    let id = args.id.clone();
+    // Read, change and write under one write lock: a concurrent edit
+    // of another field is kept, not overwritten.
+    let edited = db.edit(&id, author, |r| {
+        r.tower_type = args.tower_type.unwrap_or(r.tower_type);
+        r.lat_deg = args.lat.unwrap_or(r.lat_deg);
+        r.lon_deg = args.lon.unwrap_or(r.lon_deg);
+        r.ground_elev_m = args.elev.unwrap_or(r.ground_elev_m);
+        r.height_m = args.height.unwrap_or(r.height_m);
+        args.optional.apply(r);
+        Ok::<(), std::convert::Infallible>(())
+    })?;
+    let Some(Ok((r, revision))) = edited else {
+        return Err(refused(format!("no tower {id:?}; use `add`")));
+    };
+    println!("edited {} at revision {revision}", r.id);
+    warn_likely_mistakes(db, &r)?;
+    Ok(())
+}
+
+fn history(db: &LandmarkDb, since: u64) -> Result<(), Failure> {
+    for c in db.changes_since(since)? {
+        match c.change {
+            LandmarkChangeOp::Upsert { record } => println!(
+                "r{:<6} {}  upsert {:<10} by {}",
+                c.revision,
+                utc(record.updated_at_unix_s),
+                record.id,
+                record.updated_by
+            ),
+            LandmarkChangeOp::Remove { id } => {
+                println!("r{:<6} {:20}  remove {id}", c.revision, "")
             }
         }
     }

@@ -174,35 +174,14 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
         max_accel: params.max_yaw_accel_rad_s2,
     };
     for _ in 0..max_steps {
-        let (a, b) = (at(leg), at(leg + 1));
-        let dir = leg_direction(&a, &b);
-        let leg_len = (b - a).xy().norm().max(1e-6);
-        let along = (position - a).xy().dot(&dir).clamp(0.0, leg_len);
-        let to_go = leg_len - along;
-        let cross = (position - a).xy() - dir * along;
-        let next_dir = (leg + 2 < wps.len()).then(|| leg_direction(&b, &at(leg + 2)));
-        // Slow down before a turn so the corner stays tight: v^2 = v_turn^2 + 2 a d,
-        // and slow enough that the bend through the waypoint (radius about
-        // lead / tan(angle / 2)) asks for no more than the braking share of
-        // the acceleration.
-        let turn_speed = match next_dir {
-            Some(next) => {
-                let cos = dir.dot(&next).clamp(-1.0, 1.0);
-                let half_tan = ((1.0 - cos) / (1.0 + cos).max(1e-9)).sqrt();
-                let radius = turn_lead_m(wps, leg, params.turn_lead_s) / half_tan.max(1e-9);
-                (wps[leg].speed_mps * (0.5 * (1.0 + cos)).sqrt())
-                    .min((0.6 * params.max_accel_mps2 * radius).sqrt())
-                    .max(0.2 * wps[leg].speed_mps)
-            }
-            None => 0.0,
-        };
-        let speed = wps[leg]
-            .speed_mps
-            .min((turn_speed.powi(2) + 2.0 * 0.6 * params.max_accel_mps2 * to_go).sqrt());
-        let heading = turn_heading(wps, leg, along, to_go, params.turn_lead_s);
-        let height_target = a.z + (b.z - a.z) * (along / leg_len);
-        let v_des_h = heading * speed - cross * params.position_gain;
-        let vz_des = ((height_target - position.z) * params.position_gain).clamp(-3.0, 3.0);
+        let b = at(leg + 1);
+        let Guidance {
+            along,
+            leg_len,
+            to_go,
+            v_des_h,
+            vz_des,
+        } = guidance(wps, leg, &position, params);
         // The controller knows the steady wind's drag, not the gusts'.
         let air_known = velocity.xy() - wind_mean;
         let mut accel_cmd = (v_des_h - velocity.xy()) * params.velocity_gain;
@@ -250,14 +229,7 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
         };
         yaw_axis.step(yaw_error, &yaw_limits, dt);
         (yaw, yaw_rate) = (wrap_angle(yaw_axis.angle), yaw_axis.rate);
-        let tau = params.wind.gust_tau_s.max(dt);
-        let decay = (-dt / tau).exp();
-        let drive = params.wind.gust_sigma_mps.max(0.0) * (1.0 - decay * decay).sqrt();
-        gust = gust * decay
-            + Vector2::new(
-                rng.sample::<f64, _>(StandardNormal),
-                rng.sample::<f64, _>(StandardNormal),
-            ) * drive;
+        gust = next_gust(gust, params, dt, &mut rng);
 
         // Next leg once abeam of its end (or close to it).
         if to_go < 2.0 || along >= leg_len - 1e-9 {
@@ -269,6 +241,79 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
         }
     }
     Trajectory { dt_s: dt, samples }
+}
+
+/// Where the plan steers the vehicle at `position` on leg `leg`.
+struct Guidance {
+    /// Distance flown along the leg, its length and what is left, m.
+    along: f64,
+    leg_len: f64,
+    to_go: f64,
+    /// Horizontal velocity wanted (along the leg, back onto it), m/s.
+    v_des_h: Vector2<f64>,
+    /// Climb rate wanted towards the leg's height profile, m/s.
+    vz_des: f64,
+}
+
+fn guidance(
+    wps: &[crate::waypoints::Waypoint],
+    leg: usize,
+    position: &Point3<f64>,
+    params: &QuadParams,
+) -> Guidance {
+    let at = |i: usize| Point3::new(wps[i].east_m, wps[i].north_m, wps[i].height_m);
+    let (a, b) = (at(leg), at(leg + 1));
+    let dir = leg_direction(&a, &b);
+    let leg_len = (b - a).xy().norm().max(1e-6);
+    let along = (position - a).xy().dot(&dir).clamp(0.0, leg_len);
+    let to_go = leg_len - along;
+    let cross = (position - a).xy() - dir * along;
+    let next_dir = (leg + 2 < wps.len()).then(|| leg_direction(&b, &at(leg + 2)));
+    // Slow down before a turn so the corner stays tight: v^2 = v_turn^2 + 2 a d,
+    // and slow enough that the bend through the waypoint (radius about
+    // lead / tan(angle / 2)) asks for no more than the braking share of
+    // the acceleration.
+    let turn_speed = match next_dir {
+        Some(next) => {
+            let cos = dir.dot(&next).clamp(-1.0, 1.0);
+            let half_tan = ((1.0 - cos) / (1.0 + cos).max(1e-9)).sqrt();
+            let radius = turn_lead_m(wps, leg, params.turn_lead_s) / half_tan.max(1e-9);
+            (wps[leg].speed_mps * (0.5 * (1.0 + cos)).sqrt())
+                .min((0.6 * params.max_accel_mps2 * radius).sqrt())
+                .max(0.2 * wps[leg].speed_mps)
+        }
+        None => 0.0,
+    };
+    let speed = wps[leg]
+        .speed_mps
+        .min((turn_speed.powi(2) + 2.0 * 0.6 * params.max_accel_mps2 * to_go).sqrt());
+    let heading = turn_heading(wps, leg, along, to_go, params.turn_lead_s);
+    let height_target = a.z + (b.z - a.z) * (along / leg_len);
+    Guidance {
+        along,
+        leg_len,
+        to_go,
+        v_des_h: heading * speed - cross * params.position_gain,
+        vz_des: ((height_target - position.z) * params.position_gain).clamp(-3.0, 3.0),
+    }
+}
+
+/// The gust one step on: a first-order Gauss-Markov process with the wind's
+/// time constant and standard deviation.
+fn next_gust(
+    gust: Vector2<f64>,
+    params: &QuadParams,
+    dt: f64,
+    rng: &mut ChaCha8Rng,
+) -> Vector2<f64> {
+    let tau = params.wind.gust_tau_s.max(dt);
+    let decay = (-dt / tau).exp();
+    let drive = params.wind.gust_sigma_mps.max(0.0) * (1.0 - decay * decay).sqrt();
+    gust * decay
+        + Vector2::new(
+            rng.sample::<f64, _>(StandardNormal),
+            rng.sample::<f64, _>(StandardNormal),
+        ) * drive
 }
 
 /// One attitude axis: its angle and rate, rad and rad/s.

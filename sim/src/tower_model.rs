@@ -150,47 +150,9 @@ impl TowerModel {
     pub fn new(tower_type: TowerType, height_m: f64, base_width_m: f64) -> Self {
         let d = design(tower_type);
         let (h, w) = (height_m, base_width_m);
-        // Body levels (z, half-width): foot, waist panels, head, body top.
-        let base_half = w / 2.0;
-        let (waist_half, waist_z) = (d.waist.0 * w, d.waist.1 * h);
         let (head_half, top_z) = (d.head_half * w, d.body_top * h);
-        let mut levels = Vec::new();
-        for i in 0..=d.panels.0 {
-            let s = i as f64 / d.panels.0 as f64;
-            levels.push((s * waist_z, lerp(base_half, waist_half, s)));
-        }
-        for i in 1..=d.panels.1 {
-            let s = i as f64 / d.panels.1 as f64;
-            levels.push((lerp(waist_z, top_z, s), lerp(waist_half, head_half, s)));
-        }
-        let mut members = Vec::new();
-        let corner = |z: f64, half: f64, c: usize| {
-            let (sx, sy) = CORNERS[c];
-            Point3::new(sx * half, sy * half, z)
-        };
-        for pair in levels.windows(2) {
-            let ((z0, h0), (z1, h1)) = (pair[0], pair[1]);
-            for c in 0..4 {
-                let n = (c + 1) % 4;
-                members.push(Member {
-                    kind: MemberKind::Leg,
-                    a: corner(z0, h0, c),
-                    b: corner(z1, h1, c),
-                });
-                // X-bracing on each face, and a strut along the upper edge.
-                for (a, b) in [
-                    (corner(z0, h0, c), corner(z1, h1, n)),
-                    (corner(z0, h0, n), corner(z1, h1, c)),
-                    (corner(z1, h1, c), corner(z1, h1, n)),
-                ] {
-                    members.push(Member {
-                        kind: MemberKind::Brace,
-                        a,
-                        b,
-                    });
-                }
-            }
-        }
+        let levels = body_levels(&d, h, w);
+        let mut members = body_members(&levels);
         // Peak: from the body top's corners to the apex on the axis at exactly H.
         let apex = Point3::new(0.0, 0.0, h);
         for c in 0..4 {
@@ -254,6 +216,57 @@ impl TowerModel {
     pub fn vertices(&self) -> impl Iterator<Item = Point3<f64>> + '_ {
         self.members.iter().flat_map(|m| [m.a, m.b])
     }
+}
+
+/// Body levels (z, half-width) from the foot up: waist panels, then head panels to the body top.
+fn body_levels(d: &Design, h: f64, w: f64) -> Vec<(f64, f64)> {
+    let base_half = w / 2.0;
+    let (waist_half, waist_z) = (d.waist.0 * w, d.waist.1 * h);
+    let (head_half, top_z) = (d.head_half * w, d.body_top * h);
+    let mut levels = Vec::new();
+    for i in 0..=d.panels.0 {
+        let s = i as f64 / d.panels.0 as f64;
+        levels.push((s * waist_z, lerp(base_half, waist_half, s)));
+    }
+    for i in 1..=d.panels.1 {
+        let s = i as f64 / d.panels.1 as f64;
+        levels.push((lerp(waist_z, top_z, s), lerp(waist_half, head_half, s)));
+    }
+    levels
+}
+
+/// Corner `c` of the square section at height `z`.
+fn corner(z: f64, half: f64, c: usize) -> Point3<f64> {
+    let (sx, sy) = CORNERS[c];
+    Point3::new(sx * half, sy * half, z)
+}
+
+/// Legs between levels, X-bracing on each face, and a strut along each panel's upper edge.
+fn body_members(levels: &[(f64, f64)]) -> Vec<Member> {
+    let mut members = Vec::new();
+    for pair in levels.windows(2) {
+        let ((z0, h0), (z1, h1)) = (pair[0], pair[1]);
+        for c in 0..4 {
+            let n = (c + 1) % 4;
+            members.push(Member {
+                kind: MemberKind::Leg,
+                a: corner(z0, h0, c),
+                b: corner(z1, h1, c),
+            });
+            for (a, b) in [
+                (corner(z0, h0, c), corner(z1, h1, n)),
+                (corner(z0, h0, n), corner(z1, h1, c)),
+                (corner(z1, h1, c), corner(z1, h1, n)),
+            ] {
+                members.push(Member {
+                    kind: MemberKind::Brace,
+                    a,
+                    b,
+                });
+            }
+        }
+    }
+    members
 }
 
 fn lerp(a: f64, b: f64, s: f64) -> f64 {

@@ -108,40 +108,10 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
         let seen = seen.clone();
         async move {
             while let Ok(sample) = all.recv_async().await {
-                let key = sample.key_expr().as_str();
-                let payload = sample.payload().to_bytes();
-                if let Some(rec) = recorder.as_mut() {
-                    let now_ns = SystemTime::now()
-                        .duration_since(SystemTime::UNIX_EPOCH)
-                        .map_or(0, |d| d.as_nanos() as u64);
-                    if let Err(e) = rec.write(key, &payload, now_ns) {
-                        eprintln!("recording stopped: {e}");
-                        recorder = None;
-                    }
+                record(&mut recorder, &sample);
+                if count_pose(&sample, &seen) {
+                    poses_tx.send_modify(|n| *n += 1);
                 }
-                if !Keys::parse_uav(key).is_ok_and(|k| k.topic == Topic::Pose) {
-                    continue;
-                }
-                let Ok(pose) = decode::<PoseEstimate>(&payload) else {
-                    continue;
-                };
-                let age_ms = sample
-                    .timestamp()
-                    .and_then(|t| {
-                        SystemTime::now()
-                            .duration_since(t.get_time().to_system_time())
-                            .ok()
-                    })
-                    .map(|d| d.as_secs_f64() * 1e3);
-                let mut seen = seen.lock().unwrap_or_else(|e| e.into_inner());
-                seen.0
-                    .entry(pose.uav.as_str().to_owned())
-                    .or_default()
-                    .insert(pose.seq);
-                if let Some(age) = age_ms {
-                    seen.1.push(age);
-                }
-                poses_tx.send_modify(|n| *n += 1);
             }
             if let Some(rec) = recorder {
                 rec.finish().map(|_| ())
@@ -186,4 +156,46 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
         .collect();
     report.latency_ms = seen.1.clone();
     Ok(report)
+}
+
+/// Writes `sample` to the recording; a failed write stops the recording.
+fn record(recorder: &mut Option<Recorder>, sample: &zenoh::sample::Sample) {
+    let Some(rec) = recorder.as_mut() else {
+        return;
+    };
+    let now_ns = SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    let payload = sample.payload().to_bytes();
+    if let Err(e) = rec.write(sample.key_expr().as_str(), &payload, now_ns) {
+        eprintln!("recording stopped: {e}");
+        *recorder = None;
+    }
+}
+
+/// Counts `sample` if it is a pose: its seq under its UAV, and its age.
+fn count_pose(sample: &zenoh::sample::Sample, seen: &Mutex<Seen>) -> bool {
+    if !Keys::parse_uav(sample.key_expr().as_str()).is_ok_and(|k| k.topic == Topic::Pose) {
+        return false;
+    }
+    let Ok(pose) = decode::<PoseEstimate>(&sample.payload().to_bytes()) else {
+        return false;
+    };
+    let age_ms = sample
+        .timestamp()
+        .and_then(|t| {
+            SystemTime::now()
+                .duration_since(t.get_time().to_system_time())
+                .ok()
+        })
+        .map(|d| d.as_secs_f64() * 1e3);
+    let mut seen = seen.lock().unwrap_or_else(|e| e.into_inner());
+    seen.0
+        .entry(pose.uav.as_str().to_owned())
+        .or_default()
+        .insert(pose.seq);
+    if let Some(age) = age_ms {
+        seen.1.push(age);
+    }
+    true
 }

@@ -56,27 +56,7 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     let python = ensure_venv(root)?;
     let dataset = work.join("dataset");
     if !dataset.join("data.yaml").exists() {
-        let bin = build_release(root, &["towernav-sim"])?;
-        run(Command::new(bin.join("towernav-sim"))
-            .arg("dataset")
-            .arg("--out")
-            .arg(&dataset)
-            .args([
-                "--worlds",
-                &options.worlds.to_string(),
-                "--frames-per-world",
-                &options.frames_per_world.to_string(),
-                "--seed",
-                "0",
-                "--randomize",
-                &options.randomize.to_string(),
-            ])
-            .args(
-                options
-                    .backgrounds
-                    .iter()
-                    .flat_map(|b| [Path::new("--backgrounds"), b.as_path()]),
-            ))?;
+        render_dataset(root, &dataset, options)?;
     }
     let shipped = root.join("models").join("towers.pt");
     let init = if options.continue_run {
@@ -117,7 +97,43 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
     if options.foreground {
         return run(&mut cmd);
     }
-    std::fs::create_dir_all(&work)?;
+    spawn_in_background(cmd, &work, &pid_file, options.hours)
+}
+
+/// The simulator's training set: `options.worlds` random worlds, randomized as asked.
+fn render_dataset(root: &Path, dataset: &Path, options: &TrainOptions) -> anyhow::Result<()> {
+    let bin = build_release(root, &["towernav-sim"])?;
+    run(Command::new(bin.join("towernav-sim"))
+        .arg("dataset")
+        .arg("--out")
+        .arg(dataset)
+        .args([
+            "--worlds",
+            &options.worlds.to_string(),
+            "--frames-per-world",
+            &options.frames_per_world.to_string(),
+            "--seed",
+            "0",
+            "--randomize",
+            &options.randomize.to_string(),
+        ])
+        .args(
+            options
+                .backgrounds
+                .iter()
+                .flat_map(|b| [Path::new("--backgrounds"), b.as_path()]),
+        ))?;
+    Ok(())
+}
+
+/// Starts `cmd` detached, logging to `work/train.log`, its pid in `pid_file`.
+fn spawn_in_background(
+    mut cmd: Command,
+    work: &Path,
+    pid_file: &Path,
+    hours: f64,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(work)?;
     let log_path = work.join("train.log");
     let log = std::fs::OpenOptions::new()
         .create(true)
@@ -132,13 +148,13 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         .process_group(0)
         .spawn()
         .with_context(|| format!("starting {cmd:?}"))?;
-    std::fs::write(&pid_file, child.id().to_string())?;
+    std::fs::write(pid_file, child.id().to_string())?;
     eprintln!(
         "xtask: training in the background (pid {}), budget {} h; follow with `tail -f {}`.\n\
          Run `cargo xtask train` again after an interruption to resume from the last checkpoint,\n\
          and `cargo xtask train --ship` when it has finished to copy the model into models/.",
         child.id(),
-        options.hours,
+        hours,
         log_path.display()
     );
     Ok(())

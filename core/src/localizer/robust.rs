@@ -46,50 +46,20 @@ pub fn robust_lbl(
     params: &LocalizerParams,
 ) -> Option<RobustFix> {
     let frame = FrameCamera::new(camera, imu);
-    let mut cands: Vec<Candidate> = observations
-        .iter()
-        .enumerate()
-        .filter(|(_, o)| o.bbox.is_finite() && o.bbox.height() >= params.min_box_height_px)
-        .map(|(index, obs)| Candidate {
-            index,
-            obs,
-            usable: Usable::of(obs, &camera.intrinsics),
-            active: true,
-        })
-        .filter(|c| c.usable.count() > 0)
-        .collect();
+    let mut cands = candidates(observations, camera, params);
     if cands.is_empty() {
         return None;
     }
     let mut scratch = Vec::with_capacity(3);
-
-    // Start: the single-tower solution (or prior) that most towers agree with.
-    let mut starts: Vec<Point3<f64>> = prior_position.into_iter().collect();
-    let mut by_height: Vec<&Candidate> = cands
-        .iter()
-        .filter(|c| c.usable.top && c.usable.bottom)
-        .collect();
-    by_height.sort_by(|a, b| b.obs.bbox.height().total_cmp(&a.obs.bbox.height()));
-    starts.extend(
-        by_height
-            .iter()
-            .take(MAX_STARTS)
-            .filter_map(|c| single_tower_position(c.obs, camera, imu)),
-    );
-    let cost = |p: &Point3<f64>, scratch: &mut Vec<Residual>| -> f64 {
-        cands
-            .iter()
-            .map(|c| {
-                let chi2 = tower_chi2(c, &frame, p, imu.yaw, params, scratch);
-                chi2.min(GATE[c.usable.count()])
-            })
-            .sum()
-    };
-    let mut position = *starts
-        .iter()
-        .map(|p| (cost(p, &mut scratch), p))
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, p)| p)?;
+    let mut position = best_start(
+        &cands,
+        &frame,
+        camera,
+        imu,
+        prior_position,
+        params,
+        &mut scratch,
+    )?;
     let mut yaw = imu.yaw;
 
     // Solve, gate the worst tower, re-solve from there, until all pass.
@@ -118,17 +88,7 @@ pub fn robust_lbl(
     if rows_without(&cands, usize::MAX) < MIN_ROWS {
         return None;
     }
-    let eigen = information.symmetric_eigen();
-    let (min_eig, max_eig) = eigen
-        .eigenvalues
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &e| {
-            (lo.min(e), hi.max(e))
-        });
-    if min_eig.is_nan() || min_eig <= max_eig * 1e-12 {
-        return None;
-    }
-    let covariance = information.try_inverse()?;
+    let covariance = covariance_if_observable(&information)?;
     let horizontal_sigma = (covariance[(0, 0)] + covariance[(1, 1)]).sqrt();
     if !horizontal_sigma.is_finite() || horizontal_sigma > params.max_horizontal_sigma_m {
         return None;
@@ -144,6 +104,80 @@ pub fn robust_lbl(
         used: used.iter().map(|c| c.index).collect(),
         rejected: rejected.iter().map(|c| c.index).collect(),
     })
+}
+
+/// The observations with a box tall enough and an edge inside the image.
+fn candidates<'a, 'b>(
+    observations: &'b [Observation<'a>],
+    camera: &PinholeCamera,
+    params: &LocalizerParams,
+) -> Vec<Candidate<'a, 'b>> {
+    observations
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.bbox.is_finite() && o.bbox.height() >= params.min_box_height_px)
+        .map(|(index, obs)| Candidate {
+            index,
+            obs,
+            usable: Usable::of(obs, &camera.intrinsics),
+            active: true,
+        })
+        .filter(|c| c.usable.count() > 0)
+        .collect()
+}
+
+/// The start that most towers agree with: among the prior and the
+/// single-tower solutions of the tallest boxes, the least gated cost.
+fn best_start(
+    cands: &[Candidate<'_, '_>],
+    frame: &FrameCamera,
+    camera: &PinholeCamera,
+    imu: &Attitude,
+    prior_position: Option<Point3<f64>>,
+    params: &LocalizerParams,
+    scratch: &mut Vec<Residual>,
+) -> Option<Point3<f64>> {
+    let mut starts: Vec<Point3<f64>> = prior_position.into_iter().collect();
+    let mut by_height: Vec<&Candidate> = cands
+        .iter()
+        .filter(|c| c.usable.top && c.usable.bottom)
+        .collect();
+    by_height.sort_by(|a, b| b.obs.bbox.height().total_cmp(&a.obs.bbox.height()));
+    starts.extend(
+        by_height
+            .iter()
+            .take(MAX_STARTS)
+            .filter_map(|c| single_tower_position(c.obs, camera, imu)),
+    );
+    let mut cost = |p: &Point3<f64>| -> f64 {
+        cands
+            .iter()
+            .map(|c| {
+                let chi2 = tower_chi2(c, frame, p, imu.yaw, params, scratch);
+                chi2.min(GATE[c.usable.count()])
+            })
+            .sum()
+    };
+    starts
+        .iter()
+        .map(|p| (cost(p), *p))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, p)| p)
+}
+
+/// The covariance, unless the information leaves a direction unseen.
+fn covariance_if_observable(information: &Matrix4<f64>) -> Option<Matrix4<f64>> {
+    let eigen = information.symmetric_eigen();
+    let (min_eig, max_eig) = eigen
+        .eigenvalues
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &e| {
+            (lo.min(e), hi.max(e))
+        });
+    if min_eig.is_nan() || min_eig <= max_eig * 1e-12 {
+        return None;
+    }
+    information.try_inverse()
 }
 
 /// Measured numbers of the active towers, leaving out tower `skip`.

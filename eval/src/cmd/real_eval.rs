@@ -70,74 +70,14 @@ pub fn evaluate(
         options.images.is_some() || options.negatives.is_some(),
         "give --images, --negatives or both"
     );
-    let mut detector = YoloDetector::load_with_types(model, type_model, detector_options)?;
-    let model_names: Vec<String> = detector.info().classes.clone();
-    let names_for_boxes = model_names.clone();
-    let mut spent = 0.0;
-    let mut runs = 0usize;
-    let mut detect = |path: &Path, seq: u64| -> anyhow::Result<(Vec<Scored>, (f64, f64))> {
-        let frame = load_upright(path)?;
-        let t0 = Instant::now();
-        let dets = detector
-            .detect(&frame, seq)
-            .with_context(|| format!("detecting in {}", path.display()))?;
-        spent += t0.elapsed().as_secs_f64() * 1e3;
-        runs += 1;
-        // Class indices are the model's, in its class order.
-        let boxes = dets
-            .iter()
-            .map(|d| Scored {
-                bbox: d.bbox,
-                class: names_for_boxes
-                    .iter()
-                    .position(|n| n == d.tower_type.as_str())
-                    .unwrap_or(names_for_boxes.len()),
-                score: d.score as f32,
-            })
-            .collect();
-        Ok((boxes, (f64::from(frame.width()), f64::from(frame.height()))))
+    let mut detector = Timed {
+        detector: YoloDetector::load_with_types(model, type_model, detector_options)?,
+        spent_ms: 0.0,
+        runs: 0,
     };
+    let model_names: Vec<String> = detector.detector.info().classes.clone();
     let labelled = match &options.images {
-        Some(dir) => {
-            let folder =
-                ImageFolder::open(dir, options.split.as_deref(), options.names.as_deref())?;
-            let dont_care = options
-                .dont_care
-                .iter()
-                .map(|n| {
-                    folder.names.iter().position(|f| f == n).with_context(|| {
-                        format!(
-                            "--dont-care {n}: {} names {:?}",
-                            dir.display(),
-                            folder.names
-                        )
-                    })
-                })
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            let progress = bar(folder.images.len() as u64, "eval-detector");
-            let mut scored = Vec::with_capacity(folder.images.len());
-            for (seq, item) in folder.images.iter().enumerate() {
-                let (boxes, (w, h)) = detect(&item.image, seq as u64)?;
-                let labels = item
-                    .labels
-                    .iter()
-                    .map(|l| Labelled {
-                        bbox: l.pixels(w, h),
-                        class: l.class,
-                    })
-                    .collect();
-                scored.push(ScoredImage { labels, boxes });
-                progress.inc(1);
-            }
-            progress.finish_and_clear();
-            Some(score_folder(
-                &scored,
-                &folder.names,
-                &model_names,
-                &dont_care,
-                options.at_score,
-            ))
-        }
+        Some(dir) => Some(score_labelled(&mut detector, dir, &model_names, options)?),
         None => None,
     };
     let negatives = match &options.negatives {
@@ -146,7 +86,7 @@ pub fn evaluate(
             let progress = bar(paths.len() as u64, "negatives");
             let mut boxes = Vec::with_capacity(paths.len());
             for (seq, path) in paths.iter().enumerate() {
-                boxes.push(detect(path, seq as u64)?.0);
+                boxes.push(detector.detect(path, seq as u64, &model_names)?.0);
                 progress.inc(1);
             }
             progress.finish_and_clear();
@@ -161,8 +101,93 @@ pub fn evaluate(
         labelled,
         negatives_folder: options.negatives.as_ref().map(|p| p.display().to_string()),
         negatives,
-        latency_ms_mean: spent / runs.max(1) as f64,
+        latency_ms_mean: detector.spent_ms / detector.runs.max(1) as f64,
     })
+}
+
+/// The detector, with the time it has spent per image.
+struct Timed {
+    detector: YoloDetector,
+    spent_ms: f64,
+    runs: usize,
+}
+
+impl Timed {
+    /// The boxes on the image at `path` with class indices in `model_names`'
+    /// order, and the image's size.
+    fn detect(
+        &mut self,
+        path: &Path,
+        seq: u64,
+        model_names: &[String],
+    ) -> anyhow::Result<(Vec<Scored>, (f64, f64))> {
+        let frame = load_upright(path)?;
+        let t0 = Instant::now();
+        let dets = self
+            .detector
+            .detect(&frame, seq)
+            .with_context(|| format!("detecting in {}", path.display()))?;
+        self.spent_ms += t0.elapsed().as_secs_f64() * 1e3;
+        self.runs += 1;
+        let boxes = dets
+            .iter()
+            .map(|d| Scored {
+                bbox: d.bbox,
+                class: model_names
+                    .iter()
+                    .position(|n| n == d.tower_type.as_str())
+                    .unwrap_or(model_names.len()),
+                score: d.score as f32,
+            })
+            .collect();
+        Ok((boxes, (f64::from(frame.width()), f64::from(frame.height()))))
+    }
+}
+
+/// Every image of the labelled folder `dir`, scored against its labels.
+fn score_labelled(
+    detector: &mut Timed,
+    dir: &Path,
+    model_names: &[String],
+    options: &RealEvalOptions,
+) -> anyhow::Result<FolderScore> {
+    let folder = ImageFolder::open(dir, options.split.as_deref(), options.names.as_deref())?;
+    let dont_care = options
+        .dont_care
+        .iter()
+        .map(|n| {
+            folder.names.iter().position(|f| f == n).with_context(|| {
+                format!(
+                    "--dont-care {n}: {} names {:?}",
+                    dir.display(),
+                    folder.names
+                )
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let progress = bar(folder.images.len() as u64, "eval-detector");
+    let mut scored = Vec::with_capacity(folder.images.len());
+    for (seq, item) in folder.images.iter().enumerate() {
+        let (boxes, (w, h)) = detector.detect(&item.image, seq as u64, model_names)?;
+        let labels = item
+            .labels
+            .iter()
+            .map(|l| Labelled {
+                bbox: l.pixels(w, h),
+                class: l.class,
+            })
+            .collect();
+        scored.push(ScoredImage { labels, boxes });
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    Ok(score_folder(
+        &scored,
+        &folder.names,
+        model_names,
+        &dont_care,
+        options.at_score,
+    ))
 }
 
 fn rows_table(rows: &[&Row]) -> Table {
