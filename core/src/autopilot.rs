@@ -1,16 +1,21 @@
-//! What the autopilot is told: a pose estimate as MAVLink GPS_INPUT (a GNSS
-//! stand-in, for ArduPilot's and PX4's GPS drivers) and ODOMETRY (for their
-//! external-vision fusion). Pure: the shell sends them.
+//! What the autopilot is told, message by message: the pose as GPS_INPUT (a
+//! GNSS stand-in, for ArduPilot's and PX4's GPS drivers), ODOMETRY (their
+//! external-vision fusion) or GLOBAL_POSITION_SENSOR (PX4's auxiliary global
+//! position), plus HEARTBEAT and STATUSTEXT. Pure: `autopilot_link` decides
+//! when, the shell sends them.
 //!
-//! Accuracy fields come from the estimate's covariance; the fix type from the
-//! edge's state, so an autopilot stops trusting a coasting or lost estimate.
+//! Accuracy fields come from the estimate's covariance and the fix type from
+//! how fresh the last tower fix is, so an autopilot stops trusting a coasting
+//! or lost estimate.
 
 use mavlink::dialects::common::{
-    GPS_INPUT_DATA, GpsFixType, GpsInputIgnoreFlags, MavFrame, ODOMETRY_DATA,
+    GLOBAL_POSITION_SENSOR_DATA, GPS_INPUT_DATA, GlobalPositionFlags, GlobalPositionSrc,
+    GpsFixType, GpsInputIgnoreFlags, HEARTBEAT_DATA, MavAutopilot, MavEstimatorType, MavFrame,
+    MavModeFlag, MavSeverity, MavState, MavType, ODOMETRY_DATA, STATUSTEXT_DATA,
 };
 use nalgebra::UnitQuaternion;
 use towernav_geometry::Attitude;
-use towernav_protocol::{EdgeState, PoseEstimate};
+use towernav_protocol::{EdgeState, Health, PoseEstimate};
 
 /// Seconds between the GPS epoch (1980-01-06) and the Unix epoch, and the
 /// GPS-UTC leap seconds (18 since 2017).
@@ -24,37 +29,46 @@ pub fn accuracy_m(pose: &PoseEstimate) -> (f64, f64) {
     ((c[0][0] + c[1][1]).max(0.0).sqrt(), c[2][2].max(0.0).sqrt())
 }
 
-/// GPS fix type for the edge's state: a 3-D fix only while towers give fixes.
-pub fn fix_type(state: EdgeState) -> GpsFixType {
-    match state {
-        EdgeState::Localized => GpsFixType::GPS_FIX_TYPE_3D_FIX,
-        EdgeState::NoFix => GpsFixType::GPS_FIX_TYPE_2D_FIX,
-        EdgeState::Initializing => GpsFixType::GPS_FIX_TYPE_NO_FIX,
-    }
-}
-
-/// GPS_INPUT for `pose`, stamped with `unix_time_us` (the autopilot wants GPS
-/// week time; velocity is not estimated and flagged as ignored).
-pub fn gps_input(pose: &PoseEstimate, state: EdgeState, unix_time_us: u64) -> GPS_INPUT_DATA {
-    let (h, v) = accuracy_m(pose);
+/// GPS_INPUT at `unix_time_us` with fix `fix`. `pose` is the estimate to
+/// report (none before the first); `geoid_m` the geoid's height there, since
+/// GPS_INPUT's altitude is above mean sea level and the pose's is ellipsoidal.
+/// Velocity is not reported (flagged as ignored); without a pose, neither are
+/// altitude and accuracies.
+pub fn gps_input(
+    pose: Option<&PoseEstimate>,
+    fix: GpsFixType,
+    geoid_m: f64,
+    unix_time_us: u64,
+) -> GPS_INPUT_DATA {
     let gps_s = (unix_time_us / 1_000_000).saturating_sub(GPS_EPOCH_UNIX_S) + GPS_LEAP_S;
-    let fix = fix_type(state);
     let fixed = matches!(fix, GpsFixType::GPS_FIX_TYPE_3D_FIX);
+    let mut ignore = GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_HORIZ
+        | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_VERT
+        | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_SPEED_ACCURACY;
+    let (lat, lon, alt, (h, v)) = match pose {
+        Some(p) => (p.lat_deg, p.lon_deg, p.alt_m - geoid_m, accuracy_m(p)),
+        None => {
+            ignore |= GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_ALT
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_HDOP
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VDOP
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_HORIZONTAL_ACCURACY
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VERTICAL_ACCURACY;
+            (0.0, 0.0, 0.0, (0.0, 0.0))
+        }
+    };
     GPS_INPUT_DATA {
         time_usec: unix_time_us,
         time_week_ms: ((gps_s % WEEK_S) * 1000 + (unix_time_us / 1000) % 1000) as u32,
         time_week: (gps_s / WEEK_S) as u16,
-        lat: (pose.lat_deg * 1e7).round() as i32,
-        lon: (pose.lon_deg * 1e7).round() as i32,
-        alt: pose.alt_m as f32,
+        lat: (lat * 1e7).round() as i32,
+        lon: (lon * 1e7).round() as i32,
+        alt: alt as f32,
         // With no satellites, DOP is the accuracy over a nominal 1 m range error.
         hdop: h as f32,
         vdop: v as f32,
         horiz_accuracy: h as f32,
         vert_accuracy: v as f32,
-        ignore_flags: GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_HORIZ
-            | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_VERT
-            | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_SPEED_ACCURACY,
+        ignore_flags: ignore,
         gps_id: 0,
         fix_type: fix,
         // Autopilots' pre-arm checks count satellites; report a healthy count only with a fix.
@@ -63,10 +77,76 @@ pub fn gps_input(pose: &PoseEstimate, state: EdgeState, unix_time_us: u64) -> GP
     }
 }
 
+/// PX4's auxiliary global position (GLOBAL_POSITION_SENSOR): the fix with
+/// both altitudes and its 1-sigma errors; `healthy` false while coasting or lost,
+/// so PX4 stops fusing it.
+pub fn global_position(
+    pose: &PoseEstimate,
+    geoid_m: f64,
+    healthy: bool,
+    unix_time_us: u64,
+) -> GLOBAL_POSITION_SENSOR_DATA {
+    let (h, v) = accuracy_m(pose);
+    GLOBAL_POSITION_SENSOR_DATA {
+        time_usec: unix_time_us,
+        lat: (pose.lat_deg * 1e7).round() as i32,
+        lon: (pose.lon_deg * 1e7).round() as i32,
+        alt_ellipsoid: pose.alt_m as f32,
+        alt: (pose.alt_m - geoid_m) as f32,
+        eph: h as f32,
+        epv: v as f32,
+        source: GlobalPositionSrc::GLOBAL_POSITION_SRC_VISION,
+        flags: if healthy {
+            GlobalPositionFlags::empty()
+        } else {
+            GlobalPositionFlags::GLOBAL_POSITION_UNHEALTHY
+        },
+        ..GLOBAL_POSITION_SENSOR_DATA::DEFAULT
+    }
+}
+
+/// HEARTBEAT of a non-autopilot onboard component, its state the edge's:
+/// standby before the first fix, active while localized or coasting,
+/// critical when the pose is lost or the daemon has failed.
+pub fn heartbeat(state: EdgeState, health: Health) -> HEARTBEAT_DATA {
+    let system_status = match (state, health) {
+        (_, Health::Failed) | (EdgeState::NoFix, _) => MavState::MAV_STATE_CRITICAL,
+        (EdgeState::Initializing, _) => MavState::MAV_STATE_STANDBY,
+        (EdgeState::Localized | EdgeState::Coasting, _) => MavState::MAV_STATE_ACTIVE,
+    };
+    HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status,
+        mavlink_version: 3,
+    }
+}
+
+/// STATUSTEXT, cut to the message's 50 bytes on a character boundary.
+pub fn status_text(severity: MavSeverity, text: &str) -> STATUSTEXT_DATA {
+    let mut end = text.len().min(50);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    STATUSTEXT_DATA {
+        severity,
+        text: text[..end].into(),
+        ..STATUSTEXT_DATA::DEFAULT
+    }
+}
+
 /// ODOMETRY in the local NED frame about the mission datum (x north, y east,
 /// z down), body FRD, with the pose covariance (row-major upper triangle of
-/// x, y, z, roll, pitch, yaw) and unknown velocity (NaN).
-pub fn odometry(pose: &PoseEstimate, attitude: &Attitude, unix_time_us: u64) -> ODOMETRY_DATA {
+/// x, y, z, roll, pitch, yaw) and unknown velocity (NaN). `quality` is the
+/// message's percentage: -1 once the pose is lost.
+pub fn odometry(
+    pose: &PoseEstimate,
+    attitude: &Attitude,
+    unix_time_us: u64,
+    quality: i8,
+) -> ODOMETRY_DATA {
     let c = &pose.covariance;
     // ENU (e, n, u, yaw) -> NED (n, e, d, yaw): swap e/n, negate u, yaw sign flips.
     let ned = [1usize, 0, 2];
@@ -119,6 +199,9 @@ pub fn odometry(pose: &PoseEstimate, attitude: &Attitude, unix_time_us: u64) -> 
         velocity_covariance,
         frame_id: MavFrame::MAV_FRAME_LOCAL_NED,
         child_frame_id: MavFrame::MAV_FRAME_BODY_FRD,
+        reset_counter: 0,
+        estimator_type: MavEstimatorType::MAV_ESTIMATOR_TYPE_VISION,
+        quality,
     }
 }
 
@@ -153,26 +236,105 @@ mod tests {
     }
 
     #[test]
-    fn gps_input_carries_position_accuracy_and_fix_from_state() {
+    fn gps_input_carries_position_msl_altitude_accuracy_and_the_fix_given() {
         // 2026-11-22 00:00:00 UTC.
         let unix_us = 1_795_305_600_000_000;
-        let g = gps_input(&pose(), EdgeState::Localized, unix_us);
+        let g = gps_input(
+            Some(&pose()),
+            GpsFixType::GPS_FIX_TYPE_3D_FIX,
+            -12.5,
+            unix_us,
+        );
         assert_eq!((g.lat, g.lon), (305_205_123, 1_143_601_234));
+        assert!(
+            (g.alt - 88.0).abs() < 1e-4,
+            "75.5 m ellipsoidal over a geoid at -12.5 m"
+        );
         assert!((g.horiz_accuracy - 3.0).abs() < 1e-6, "sqrt(4 + 5)");
         assert!((g.vert_accuracy - 3.0).abs() < 1e-6);
         assert_eq!(g.fix_type, GpsFixType::GPS_FIX_TYPE_3D_FIX);
         assert!(g.satellites_visible >= 6);
+        assert!(
+            !g.ignore_flags
+                .contains(GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_ALT)
+        );
         // GPS week of 2026-11-22 (a Sunday, so the week just began): 2446.
         assert_eq!(g.time_week, 2446);
         assert_eq!(g.time_week_ms, 18_000, "18 leap seconds into the week");
-        let lost = gps_input(&pose(), EdgeState::Initializing, unix_us);
+        let coasting = gps_input(Some(&pose()), GpsFixType::GPS_FIX_TYPE_2D_FIX, 0.0, unix_us);
+        assert_eq!(coasting.satellites_visible, 0);
+        let lost = gps_input(None, GpsFixType::GPS_FIX_TYPE_NO_FIX, 0.0, unix_us);
         assert_eq!(lost.fix_type, GpsFixType::GPS_FIX_TYPE_NO_FIX);
-        assert_eq!(lost.satellites_visible, 0);
+        assert!(lost.ignore_flags.contains(
+            GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_ALT
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_HORIZONTAL_ACCURACY
+        ));
+    }
+
+    #[test]
+    fn heartbeat_is_an_onboard_controller_whose_state_follows_the_edge() {
+        let h = heartbeat(EdgeState::Localized, Health::Ok);
+        assert_eq!(h.mavtype, MavType::MAV_TYPE_ONBOARD_CONTROLLER);
+        assert_eq!(h.autopilot, MavAutopilot::MAV_AUTOPILOT_INVALID);
+        assert_eq!(h.system_status, MavState::MAV_STATE_ACTIVE);
+        assert_eq!(h.mavlink_version, 3);
+        let states = [
+            (
+                EdgeState::Initializing,
+                Health::Ok,
+                MavState::MAV_STATE_STANDBY,
+            ),
+            (
+                EdgeState::Coasting,
+                Health::Degraded,
+                MavState::MAV_STATE_ACTIVE,
+            ),
+            (EdgeState::NoFix, Health::Ok, MavState::MAV_STATE_CRITICAL),
+            (
+                EdgeState::Localized,
+                Health::Failed,
+                MavState::MAV_STATE_CRITICAL,
+            ),
+        ];
+        for (state, health, expected) in states {
+            assert_eq!(
+                heartbeat(state, health).system_status,
+                expected,
+                "{state:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn status_text_is_cut_to_fifty_bytes_on_a_character() {
+        // One byte, then two-byte characters: byte 50 falls inside one.
+        let t = status_text(
+            MavSeverity::MAV_SEVERITY_WARNING,
+            &format!("a{}", "é".repeat(40)),
+        );
+        let bytes: [u8; 50] = t.text.into();
+        assert_eq!(bytes[49], 0, "the split character is left out");
+        assert_eq!(std::str::from_utf8(&bytes[..49]).map(str::len), Ok(49));
+    }
+
+    #[test]
+    fn global_position_carries_both_altitudes_and_health() {
+        let g = global_position(&pose(), -12.5, true, 7);
+        assert_eq!((g.lat, g.lon, g.time_usec), (305_205_123, 1_143_601_234, 7));
+        assert_eq!((g.alt_ellipsoid, g.alt), (75.5, 88.0));
+        assert!((g.eph - 3.0).abs() < 1e-6 && (g.epv - 3.0).abs() < 1e-6);
+        assert_eq!(g.source, GlobalPositionSrc::GLOBAL_POSITION_SRC_VISION);
+        assert!(g.flags.is_empty());
+        let coasting = global_position(&pose(), 0.0, false, 7);
+        assert_eq!(
+            coasting.flags,
+            GlobalPositionFlags::GLOBAL_POSITION_UNHEALTHY
+        );
     }
 
     #[test]
     fn odometry_is_ned_with_the_covariance_rotated() {
-        let o = odometry(&pose(), &Attitude::level(0.0), 0);
+        let o = odometry(&pose(), &Attitude::level(0.0), 0, 100);
         assert_eq!((o.x, o.y, o.z), (20.0, 10.0, -50.0));
         assert_eq!(o.pose_covariance[0], 5.0, "x is north");
         assert_eq!(o.pose_covariance[1], 1.0, "x-y");
@@ -182,5 +344,6 @@ mod tests {
         // ENU yaw pi/2 (facing north) is NED yaw 0: identity quaternion.
         assert!((o.q[0] - 1.0).abs() < 1e-6, "{:?}", o.q);
         assert!(o.vx.is_nan(), "velocity is not estimated");
+        assert_eq!(o.quality, 100);
     }
 }

@@ -8,15 +8,17 @@
 //! correction and takes new landmarks.
 
 use hdrhistogram::Histogram;
+use mavlink::dialects::common::MavMessage;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
-use towernav_geometry::{Attitude, Datum};
+use towernav_geometry::{Attitude, Datum, Geodetic};
 use towernav_protocol::{
     CorrectionAck, Detection, DetectionFrame, DetectionReport, EdgeState, Health, IdCorrection,
     NodeId, PoseEstimate, PoseMethod, StatusHeartbeat, TrackReport,
 };
 
+use crate::autopilot_link::{AutopilotLink, LinkEstimate};
 use crate::landmarks::LandmarkMap;
 use crate::pipeline::{FrameOutput, Pipeline};
 use crate::wire::{pose_estimate, track_report};
@@ -56,6 +58,8 @@ pub struct DetectedFrame {
 pub enum Command {
     Correct(IdCorrection),
     ReplaceMap(LandmarkMap),
+    /// A message from the autopilot, for the MAVLink link.
+    FromAutopilot(MavMessage),
 }
 
 /// What the shell is to send or do.
@@ -76,6 +80,8 @@ pub enum Output {
     },
     Ack(CorrectionAck),
     Status(StatusHeartbeat),
+    /// To the autopilot.
+    Mavlink(MavMessage),
 }
 
 /// Frames the source dropped or failed, as totals since start.
@@ -112,6 +118,7 @@ pub struct DaemonCore {
     /// Every processed frame's latency, microseconds, in fixed memory.
     latency_us: Histogram<u64>,
     last_preview: Option<Instant>,
+    autopilot: Option<AutopilotLink>,
 }
 
 impl DaemonCore {
@@ -135,7 +142,18 @@ impl DaemonCore {
             window_ms: Vec::new(),
             latency_us: latency_histogram(),
             last_preview: None,
+            autopilot: None,
         }
+    }
+
+    /// With a MAVLink link to the autopilot: its messages come out as `Output::Mavlink`.
+    pub fn with_autopilot(mut self, link: AutopilotLink) -> Self {
+        self.autopilot = Some(link);
+        self
+    }
+
+    pub fn autopilot(&self) -> Option<&AutopilotLink> {
+        self.autopilot.as_ref()
     }
 
     /// Runs the pipeline on one detected frame and queues its messages.
@@ -150,10 +168,12 @@ impl DaemonCore {
         let map = self.pipeline.map();
         self.fixes += u64::from(output.estimate.is_some());
         self.state = match (&output.estimate, self.fixes) {
-            (Some(_), _) => EdgeState::Localized,
+            (Some(e), _) if e.updated => EdgeState::Localized,
+            (Some(_), _) => EdgeState::Coasting,
             (None, 0) => EdgeState::Initializing,
             (None, _) => EdgeState::NoFix,
         };
+        let mut for_autopilot = None;
         if let Some(estimate) = &output.estimate {
             let pose = pose_estimate(
                 &self.config.uav,
@@ -163,11 +183,20 @@ impl DaemonCore {
                 &self.config.datum,
             );
             self.poses += 1;
+            for_autopilot = Some(LinkEstimate {
+                pose: pose.clone(),
+                attitude: frame.attitude,
+                velocity_in_world: estimate.velocity_in_world,
+                velocity_covariance: estimate.velocity_covariance,
+            });
             self.outputs.push_back(Output::Pose {
                 pose,
                 state: self.state,
                 attitude: frame.attitude,
             });
+        }
+        if let Some(link) = self.autopilot.as_mut() {
+            link.handle_estimate(now, for_autopilot, self.state);
         }
         self.outputs
             .push_back(Output::Tracks(track_report(&self.config.uav, &output, map)));
@@ -199,7 +228,7 @@ impl DaemonCore {
     }
 
     /// Applies a correction (and queues its acknowledgement) or a new landmark set at once.
-    pub fn handle_command(&mut self, _now: Instant, command: Command) {
+    pub fn handle_command(&mut self, now: Instant, command: Command) {
         match command {
             Command::Correct(c) => {
                 let result = self.pipeline.pin(c.track_id, c.tower_id.as_deref());
@@ -215,16 +244,41 @@ impl DaemonCore {
                 tracing::info!(towers = map.towers.len(), "landmarks replaced");
                 self.pipeline.replace_map(map);
             }
+            Command::FromAutopilot(message) => {
+                let Some(link) = self.autopilot.as_mut() else {
+                    return;
+                };
+                link.handle_message(now, &message);
+                // The autopilot's GNSS, while it has one, says where to start.
+                if let (MavMessage::GLOBAL_POSITION_INT(_), Some(p)) =
+                    (&message, link.autopilot_position())
+                    && let Ok(place) = Geodetic::new(p.lat_deg, p.lon_deg, p.height_m)
+                {
+                    let point = self.config.datum.to_enu(&place);
+                    self.pipeline.hint_position(self.last_time_s, point);
+                }
+            }
         }
     }
 
     /// When `handle_timeout` is next due.
     pub fn poll_timeout(&self) -> Instant {
-        self.next_status
+        match &self.autopilot {
+            Some(link) => self.next_status.min(link.poll_timeout()),
+            None => self.next_status,
+        }
     }
 
-    /// Sends the status heartbeat when due; `counters` are the source's totals.
+    /// Sends the status heartbeat and the autopilot's messages when due;
+    /// `counters` are the source's totals.
     pub fn handle_timeout(&mut self, now: Instant, counters: SourceCounters) {
+        self.status_timeout(now, counters);
+        if let Some(link) = self.autopilot.as_mut() {
+            link.handle_timeout(now);
+        }
+    }
+
+    fn status_timeout(&mut self, now: Instant, counters: SourceCounters) {
         if now < self.next_status {
             return;
         }
@@ -260,6 +314,9 @@ impl DaemonCore {
             latency_p99_ms: p99,
             detector: self.config.detector.clone(),
         }));
+        if let Some(link) = self.autopilot.as_mut() {
+            link.handle_health(health);
+        }
         self.window_ms.clear();
         self.frames_at_status = self.frames;
         self.troubles_at_status = troubles;
@@ -270,7 +327,12 @@ impl DaemonCore {
 
     /// The next message to send, oldest first.
     pub fn poll_output(&mut self) -> Option<Output> {
-        self.outputs.pop_front()
+        self.outputs.pop_front().or_else(|| {
+            self.autopilot
+                .as_mut()
+                .and_then(AutopilotLink::poll_transmit)
+                .map(Output::Mavlink)
+        })
     }
 
     pub fn pipeline(&self) -> &Pipeline {

@@ -237,3 +237,73 @@ fn whole_run_latency_percentiles_hold_in_fixed_memory() {
     assert!((p99 - 99.0).abs() <= 1.0, "{p99}");
     assert_eq!(core.latency_count(), 100);
 }
+
+#[test]
+fn the_autopilot_s_gnss_position_starts_the_pipeline_where_the_uav_is() {
+    use mavlink::dialects::common::{GLOBAL_POSITION_INT_DATA, MavMessage};
+
+    use crate::autopilot_link::{AutopilotLink, LinkConfig};
+
+    let start = Instant::now();
+    let core = core(start, None);
+    let datum = core.config.datum;
+    let mut core = core.with_autopilot(AutopilotLink::new(
+        LinkConfig::default(),
+        datum,
+        start,
+        1_795_305_600_000_000,
+    ));
+    assert!(
+        core.pipeline().predicted_position(0.0).is_none(),
+        "nothing known yet"
+    );
+    // 200 m east of the datum, 40 m above it (MSL from the geoid).
+    let place = datum.to_geodetic(&Point3::new(200.0, 0.0, 40.0));
+    let msl = place.height_m - towernav_geometry::geoid_height_m(place.lat_deg, place.lon_deg);
+    core.handle_command(
+        start,
+        Command::FromAutopilot(MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            lat: (place.lat_deg * 1e7).round() as i32,
+            lon: (place.lon_deg * 1e7).round() as i32,
+            alt: (msl * 1e3).round() as i32,
+            hdg: u16::MAX,
+            ..GLOBAL_POSITION_INT_DATA::DEFAULT
+        })),
+    );
+    let p = core.pipeline().predicted_position(0.0).expect("hinted");
+    assert!((p - Point3::new(200.0, 0.0, 40.0)).norm() < 0.05, "{p}");
+}
+
+#[test]
+fn with_an_autopilot_link_the_core_beats_mavlink_through_a_camera_stall() {
+    use crate::autopilot_link::{AutopilotLink, LinkConfig};
+
+    let start = Instant::now();
+    let core = core(start, None);
+    let datum = core.config.datum;
+    let mut core = core.with_autopilot(AutopilotLink::new(
+        LinkConfig::default(),
+        datum,
+        start,
+        1_795_305_600_000_000,
+    ));
+    let mut seq = 0;
+    let outputs = run(
+        &mut core,
+        start,
+        Duration::ZERO,
+        Duration::from_secs(10),
+        None,
+        &mut seq,
+    );
+    let mavlink: Vec<&str> = outputs
+        .iter()
+        .filter_map(|o| match o {
+            Output::Mavlink(m) => Some(mavlink::Message::message_name(m)),
+            _ => None,
+        })
+        .collect();
+    let count = |name: &str| mavlink.iter().filter(|n| **n == name).count();
+    assert_eq!(count("HEARTBEAT"), 10);
+    assert_eq!(count("GPS_INPUT"), 50);
+}

@@ -72,6 +72,8 @@ pub struct Estimate {
     pub yaw: f64,
     /// (east, north, up, yaw).
     pub covariance: Matrix4<f64>,
+    /// Of the velocity (east, north, up): how fast a prediction's error grows.
+    pub velocity_covariance: Matrix3<f64>,
     /// The fix of this frame was fused (false: predicted only, or the fix was gated).
     pub updated: bool,
     /// Seconds since the last accepted fix.
@@ -223,6 +225,7 @@ impl PoseFilter {
             velocity_in_world: s.x.fixed_rows::<3>(3).into_owned(),
             yaw,
             covariance,
+            velocity_covariance: s.p.fixed_view::<3, 3>(3, 3).into_owned(),
             updated: matches!(verdict, FixVerdict::Accepted | FixVerdict::Restarted),
             coast_s: time_s - s.last_update_s,
         };

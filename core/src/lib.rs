@@ -11,6 +11,7 @@
 
 pub mod assignment;
 pub mod autopilot;
+pub mod autopilot_link;
 pub mod daemon;
 pub mod detector;
 pub mod filter;

@@ -137,11 +137,27 @@ impl Pipeline {
         Ok(())
     }
 
-    fn predicted_position(&self, time_s: f64) -> Option<Point3<f64>> {
+    /// Where the UAV is expected at `time_s`: the filter's prediction, else
+    /// the newest position known (an estimate, or a hint).
+    pub fn predicted_position(&self, time_s: f64) -> Option<Point3<f64>> {
         self.filter
             .as_ref()
             .and_then(|f| f.predicted_position(time_s))
             .or(self.last_known)
+    }
+
+    /// Where another source (the autopilot's GNSS, while it is good) puts
+    /// the UAV: the prior for identity and the start of the localizer until
+    /// the filter tracks on its own; ignored while it does.
+    pub fn hint_position(&mut self, time_s: f64, point_in_world: Point3<f64>) {
+        let tracking = self
+            .filter
+            .as_ref()
+            .and_then(|f| f.predicted_position(time_s))
+            .is_some();
+        if !tracking {
+            self.last_known = Some(point_in_world);
+        }
     }
 
     pub fn process(&mut self, frame: &DetectionFrame) -> FrameOutput {
@@ -298,6 +314,7 @@ impl Pipeline {
                     velocity_in_world: nalgebra::Vector3::zeros(),
                     yaw: f.yaw,
                     covariance: f.covariance,
+                    velocity_covariance: nalgebra::Matrix3::zeros(),
                     updated: true,
                     coast_s: 0.0,
                 }),

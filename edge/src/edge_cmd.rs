@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use nalgebra::Point3;
+use towernav_core::autopilot_link::AutopilotLink;
 use towernav_core::daemon::{DaemonConfig, DaemonCore, FrameObserver};
 use towernav_core::detector::PostprocessParams;
 use towernav_core::localizer::Method;
@@ -58,18 +59,7 @@ pub async fn run_edge(
     let records = landmark_records(config, sync.as_ref(), sim.as_deref())?;
     let (detector, detector_name) = load_detector(&config.detector)?;
     let classes: Option<Vec<TowerType>> = detector.as_ref().map(|d| d.classes().to_vec());
-    let types = match &classes {
-        Some(classes) => match_types(classes, &records).with_context(|| {
-            format!(
-                "the detector {} cannot tell the landmarks' types apart",
-                config.detector.model.display()
-            )
-        })?,
-        None => TypeMatch::Typed,
-    };
-    if let TypeMatch::Untyped(class) = types {
-        tracing::info!(%class, "one-class detector: towers are bound by geometry alone");
-    }
+    let types = types_for(config, classes.as_deref(), &records)?;
     let map = LandmarkMap::from_records(&records, &datum).matched(types);
     let node = EdgeNode::new(session, fleet.clone(), uav.clone()).await?;
 
@@ -102,6 +92,10 @@ pub async fn run_edge(
         pipeline,
         Instant::now(),
     );
+    let core = match config.mavlink.enabled {
+        true => core.with_autopilot(autopilot_link(config, datum)),
+        false => core,
+    };
     let options = run_options(config, detector_name, classes)?;
     print_banner(config, &fleet);
 
@@ -140,6 +134,43 @@ pub async fn run_edge(
     print_closing_line(&summary);
     warn_drops(config, &summary);
     Ok(summary)
+}
+
+/// How the detector's classes meet the landmarks' types: refused when it
+/// cannot tell them apart, by geometry alone for a one-class detector.
+fn types_for(
+    config: &EdgeConfig,
+    classes: Option<&[TowerType]>,
+    records: &[LandmarkRecord],
+) -> anyhow::Result<TypeMatch> {
+    let Some(classes) = classes else {
+        return Ok(TypeMatch::Typed);
+    };
+    let types = match_types(classes, records).with_context(|| {
+        format!(
+            "the detector {} cannot tell the landmarks' types apart",
+            config.detector.model.display()
+        )
+    })?;
+    if let TypeMatch::Untyped(class) = types {
+        tracing::info!(%class, "one-class detector: towers are bound by geometry alone");
+    }
+    Ok(types)
+}
+
+/// The core's MAVLink link, its clock set from this machine's until the
+/// autopilot's SYSTEM_TIME says otherwise.
+fn autopilot_link(config: &EdgeConfig, datum: Datum) -> AutopilotLink {
+    let unix_now_us = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64);
+    let accel_sigma = towernav_core::filter::FilterParams::default().accel_sigma_h;
+    AutopilotLink::new(
+        config.mavlink.link_config(accel_sigma),
+        datum,
+        Instant::now(),
+        unix_now_us,
+    )
 }
 
 /// The pipeline the config asks for, and its method.

@@ -1,5 +1,5 @@
 //! The one home for towernav's geometry: frames and attitude, the pinhole
-//! camera, pixel boxes, WGS84 geodesy, the index of points within a radius and
+//! camera, pixel boxes, WGS84 geodesy and the EGM96 geoid, the index of points within a radius and
 //! Web Mercator map tiles.
 //!
 //! Conventions (see ARCHITECTURE.md): the world is east-north-up (ENU) about a
@@ -10,6 +10,7 @@ pub mod camera;
 pub mod frame_camera;
 pub mod frames;
 pub mod geodesy;
+pub mod geoid;
 pub mod pixel_box;
 pub mod spatial;
 pub mod web_mercator;
@@ -18,5 +19,6 @@ pub use camera::{CameraMount, Intrinsics, PinholeCamera, RayGrid};
 pub use frame_camera::{FrameCamera, Projected};
 pub use frames::{Attitude, Pose, wrap_angle};
 pub use geodesy::{Datum, Geodetic};
+pub use geoid::{GeoidCache, geoid_height_m, msl_from_ellipsoid_m};
 pub use pixel_box::PixelBox;
 pub use spatial::GeoIndex;

@@ -13,6 +13,12 @@ fn db(dir: &Path, args: &[&str]) -> Output {
         .expect("runs")
 }
 
+/// `out` exited with `code` and says `needle`.
+fn refused(out: &Output, code: i32, needle: &str) {
+    assert_eq!(out.status.code(), Some(code), "{}", text(out));
+    assert!(text(out).contains(needle), "{}", text(out));
+}
+
 fn text(o: &Output) -> String {
     format!(
         "{}{}",
@@ -37,13 +43,9 @@ fn a_surveyor_session() {
     )
     .expect("write");
     let out = db(d, &["import", d.join("bad.csv").to_str().expect("utf8")]);
-    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
-    assert!(
-        text(&out).contains("line 4") && text(&out).contains("height_m"),
-        "{}",
-        text(&out)
-    );
-    assert!(text(&out).contains("nothing was imported"));
+    refused(&out, 1, "line 4");
+    refused(&out, 1, "height_m");
+    refused(&out, 1, "nothing was imported");
 
     let out = db(
         d,
@@ -67,8 +69,7 @@ fn a_surveyor_session() {
             "--height", "32",
         ],
     );
-    assert_eq!(out.status.code(), Some(1));
-    assert!(text(&out).contains("exists"), "{}", text(&out));
+    refused(&out, 1, "exists");
 
     // 0.0001 deg north of A1 is about 11 m: added, but flagged.
     let out = db(
@@ -81,9 +82,7 @@ fn a_surveyor_session() {
     assert!(out.status.success(), "{}", text(&out));
     assert!(text(&out).contains("check A2: stands"), "{}", text(&out));
 
-    let out = db(d, &["edit", "A2", "--height", "900"]);
-    assert_eq!(out.status.code(), Some(1));
-    assert!(text(&out).contains("height_m"), "{}", text(&out));
+    refused(&db(d, &["edit", "A2", "--height", "900"]), 1, "height_m");
     assert!(
         db(d, &["edit", "A2", "--lat", "30.51", "--sigma-h", "0.05"])
             .status
@@ -121,8 +120,20 @@ fn a_surveyor_session() {
         Some(2),
         "usage errors exit 2"
     );
+}
 
-    // GeoJSON out of one database and into another loses nothing.
+/// GeoJSON out of one database and into another loses nothing.
+#[test]
+fn geojson_out_of_one_database_and_into_another_loses_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("s.csv"), SURVEY).expect("write");
+    assert!(
+        db(d, &["import", d.join("s.csv").to_str().expect("utf8")])
+            .status
+            .success()
+    );
+    assert!(db(d, &["edit", "A1", "--sigma-h", "0.05"]).status.success());
     let geojson = d.join("towers.geojson");
     let out = db(
         d,
@@ -154,7 +165,7 @@ fn a_surveyor_session() {
             .collect::<Vec<_>>()
     };
     let (a, b) = (survey(d), survey(other.path()));
-    assert_eq!(a.len(), 3, "{a:?}");
+    assert_eq!(a.len(), 3, "header and two towers: {a:?}");
     assert_eq!(a, b);
 }
 

@@ -80,9 +80,12 @@ pub struct TrackReport {
 pub enum EdgeState {
     /// Running, no fix yet.
     Initializing,
-    /// The last frame gave a fix.
+    /// The last frame gave a fix, and the filter took it.
     Localized,
-    /// Towers are out of sight; the last fix is ageing.
+    /// No fix in the last frame: the estimate is the filter's prediction,
+    /// its covariance growing.
+    Coasting,
+    /// No estimate: towers out of sight too long, the pose is lost.
     NoFix,
 }
 

@@ -18,12 +18,20 @@ const BLOCKS: u32 = 200;
 /// to the next test that asks; here each call takes the next port of the
 /// process's own block instead.
 pub fn loopback_endpoint() -> String {
+    format!("tcp/127.0.0.1:{}", loopback_port())
+}
+
+/// A loopback port free for TCP and UDP alike, from the same block (MAVLink
+/// tests listen on UDP).
+pub fn loopback_port() -> u16 {
     static NEXT: AtomicU16 = AtomicU16::new(0);
     let base = FIRST_PORT + (std::process::id() % BLOCKS) as u16 * BLOCK;
     for _ in 0..BLOCK {
         let port = base + NEXT.fetch_add(1, Ordering::Relaxed) % BLOCK;
-        if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
-            return format!("tcp/127.0.0.1:{port}");
+        if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok()
+            && std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok()
+        {
+            return port;
         }
     }
     panic!("no free loopback port in {base}..{}", base + BLOCK);

@@ -37,6 +37,66 @@ fn oracle_config(fleet: &str, connect: &str, frames: u64) -> EdgeConfig {
     c
 }
 
+/// Samples a subscriber receives, kept as (key, payload) while it runs; the
+/// watch counts poses.
+type Collected = (
+    Arc<std::sync::Mutex<Vec<(String, Vec<u8>)>>>,
+    tokio::sync::watch::Receiver<u64>,
+    tokio::task::JoinHandle<()>,
+);
+
+fn collect(
+    all: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+) -> Collected {
+    let received = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (poses_tx, poses_rx) = tokio::sync::watch::channel(0u64);
+    let reader = tokio::spawn({
+        let received = received.clone();
+        async move {
+            while let Ok(sample) = all.recv_async().await {
+                let key = sample.key_expr().as_str().to_owned();
+                let bytes = sample.payload().to_bytes().to_vec();
+                let pose = Keys::parse_uav(&key).is_ok_and(|k| k.topic == Topic::Pose);
+                received
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push((key, bytes));
+                if pose {
+                    poses_tx.send_modify(|n| *n += 1);
+                }
+            }
+        }
+    });
+    (received, poses_rx, reader)
+}
+
+/// The liveliness token's samples until it is deleted (or 3 s of silence).
+async fn token_kinds(
+    alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+) -> anyhow::Result<Vec<SampleKind>> {
+    let mut kinds = Vec::new();
+    while let Ok(Ok(s)) = tokio::time::timeout(Duration::from_secs(3), alive.recv_async()).await {
+        assert_eq!(Keys::parse_alive(s.key_expr().as_str())?.as_str(), "uav7");
+        kinds.push(s.kind());
+        if s.kind() == SampleKind::Delete {
+            break;
+        }
+    }
+    Ok(kinds)
+}
+
+/// The next payload on `subscriber`, decoded; an error after 10 s of nothing.
+async fn next_payload<M: towernav_protocol::Message>(
+    subscriber: &zenoh::pubsub::Subscriber<
+        zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>,
+    >,
+) -> anyhow::Result<M> {
+    let sample = tokio::time::timeout(Duration::from_secs(10), subscriber.recv_async())
+        .await?
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(decode(&sample.payload().to_bytes())?)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_subscriber_gets_every_topic_and_the_poses_match_the_truth() -> anyhow::Result<()> {
     let endpoint = towernav_tests::loopback_endpoint();
@@ -57,25 +117,7 @@ async fn a_subscriber_gets_every_topic_and_the_poses_match_the_truth() -> anyhow
         .map_err(|e| anyhow::anyhow!("{e}"))?;
 
     // Read while the edge runs: a subscriber that stops reading makes the publisher wait or drop.
-    let received = Arc::new(std::sync::Mutex::new(Vec::new()));
-    let (poses_tx, mut poses_rx) = tokio::sync::watch::channel(0u64);
-    let reader = tokio::spawn({
-        let received = received.clone();
-        async move {
-            while let Ok(sample) = all.recv_async().await {
-                let key = sample.key_expr().as_str().to_owned();
-                let bytes = sample.payload().to_bytes().to_vec();
-                let pose = Keys::parse_uav(&key).is_ok_and(|k| k.topic == Topic::Pose);
-                received
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .push((key, bytes));
-                if pose {
-                    poses_tx.send_modify(|n| *n += 1);
-                }
-            }
-        }
-    });
+    let (received, mut poses_rx, reader) = collect(all);
     let dir = tempfile::tempdir()?;
     let mut config = oracle_config("itest", &endpoint, 600);
     config.output.jsonl = Some(dir.path().join("poses.jsonl"));
@@ -134,14 +176,7 @@ async fn a_subscriber_gets_every_topic_and_the_poses_match_the_truth() -> anyhow
     let first: PoseEstimate = serde_json::from_str(log.lines().next().unwrap_or_default())?;
     assert_eq!(first.uav.as_str(), "uav7");
 
-    let mut kinds = Vec::new();
-    while let Ok(Ok(s)) = tokio::time::timeout(Duration::from_secs(3), alive.recv_async()).await {
-        assert_eq!(Keys::parse_alive(s.key_expr().as_str())?.as_str(), "uav7");
-        kinds.push(s.kind());
-        if s.kind() == SampleKind::Delete {
-            break;
-        }
-    }
+    let kinds = token_kinds(&alive).await?;
     assert_eq!(
         kinds,
         [SampleKind::Put, SampleKind::Delete],
@@ -190,10 +225,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
 
     // Wait for a track bound to a tower, then pin it to another tower of the field.
     let bound = loop {
-        let sample = tokio::time::timeout(Duration::from_secs(10), tracks.recv_async())
-            .await?
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        let report: TrackReport = decode(&sample.payload().to_bytes())?;
+        let report: TrackReport = next_payload(&tracks).await?;
         if let Some(t) = report.tracks.iter().find(|t| t.tower_id.is_some()) {
             break t.clone();
         }
@@ -225,10 +257,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
     send(2, "NO-SUCH-TOWER").await?;
     let mut answers: Vec<CorrectionAck> = Vec::new();
     while answers.len() < 2 {
-        let sample = tokio::time::timeout(Duration::from_secs(10), acks.recv_async())
-            .await?
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        answers.push(decode(&sample.payload().to_bytes())?);
+        answers.push(next_payload(&acks).await?);
     }
     answers.sort_by_key(|a| a.request_id);
     assert!(answers[0].accepted, "{:?}", answers[0]);
@@ -246,10 +275,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
     // the pin shows, every later report keeps it while the track lives.
     let mut pinned_seen = 0;
     for _ in 0..120 {
-        let sample = tokio::time::timeout(Duration::from_secs(10), tracks.recv_async())
-            .await?
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        let report: TrackReport = decode(&sample.payload().to_bytes())?;
+        let report: TrackReport = next_payload(&tracks).await?;
         if let Some(t) = report.tracks.iter().find(|t| t.track_id == bound.track_id)
             && (pinned_seen > 0 || t.pinned)
         {

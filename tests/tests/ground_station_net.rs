@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use towernav_edge::node::{EdgeNode, open_session};
 use towernav_ground_station::events::NetEvent;
-use towernav_ground_station::net::{self, NetCommand};
+use towernav_ground_station::net::{self, NetCommand, NetLink};
 use towernav_ground_station::recording;
 use towernav_protocol::session::Endpoints;
 use towernav_protocol::{IdCorrection, Keys, NodeId, PoseEstimate, PoseMethod, TrackReport};
@@ -57,6 +57,61 @@ fn wait_for<T>(
     }
 }
 
+fn command(link: &NetLink, command: NetCommand) -> anyhow::Result<()> {
+    link.commands
+        .send(command)
+        .map_err(|_| anyhow::anyhow!("network thread gone"))
+}
+
+/// Waits until the ground station sees `uav`'s liveliness token come or go.
+fn wait_alive(link: &NetLink, uav: &NodeId, alive: bool) -> anyhow::Result<()> {
+    wait_for(&link.events, Duration::from_secs(10), |e| match e {
+        NetEvent::Alive { uav: u, alive: a } if u == *uav && a == alive => Some(()),
+        _ => None,
+    })
+}
+
+/// Publishes poses until the ground station's subscription has reached the
+/// edge; the first pose that arrives.
+async fn first_pose(link: &NetLink, edge: &EdgeNode, uav: &NodeId) -> anyhow::Result<PoseEstimate> {
+    for seq in 0..100 {
+        edge.publish_pose(&pose(uav, seq)).await?;
+        if let Ok(p) = wait_for(&link.events, Duration::from_millis(100), |e| match e {
+            NetEvent::Pose(p) => Some(p),
+            _ => None,
+        }) {
+            return Ok(p);
+        }
+    }
+    anyhow::bail!("no pose reached the ground station")
+}
+
+/// Puts a payload of an unknown schema on `key` until the ground station
+/// rejects it: the tracks subscription's declaration travels apart from the
+/// poses' (a single put raced it under load). The rejection's reason.
+async fn first_rejection(
+    link: &NetLink,
+    session: &zenoh::Session,
+    key: &str,
+) -> anyhow::Result<String> {
+    for _ in 0..50 {
+        session
+            .put(
+                key,
+                br#"{"schema": 9, "kind": "tracks", "body": {}}"#.to_vec(),
+            )
+            .await
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        if let Ok(e) = wait_for(&link.events, Duration::from_millis(100), |e| match e {
+            NetEvent::Rejected { key: k, error } if k == key => Some(error),
+            _ => None,
+        }) {
+            return Ok(e);
+        }
+    }
+    anyhow::bail!("no rejection reached the ground station")
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Result<()> {
     let endpoint = towernav_tests::loopback_endpoint();
@@ -78,9 +133,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         None,
         || {},
     );
-    link.commands
-        .send(NetCommand::StartRecording(mcap.clone()))
-        .map_err(|_| anyhow::anyhow!("network thread gone"))?;
+    command(&link, NetCommand::StartRecording(mcap.clone()))?;
     wait_for(&link.events, Duration::from_secs(5), |e| match e {
         NetEvent::Notice(n) if n.starts_with("recording to") => Some(()),
         _ => None,
@@ -89,50 +142,11 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
     let edge = EdgeNode::new(session.clone(), fleet.clone(), uav.clone()).await?;
 
     // The edge's liveliness token is seen.
-    wait_for(&link.events, Duration::from_secs(10), |e| match e {
-        NetEvent::Alive {
-            uav: u,
-            alive: true,
-        } if u == uav => Some(()),
-        _ => None,
-    })?;
-
-    // Publish until the ground station's subscription has reached us.
-    let mut got = None;
-    for seq in 0..100 {
-        edge.publish_pose(&pose(&uav, seq)).await?;
-        if let Ok(p) = wait_for(&link.events, Duration::from_millis(100), |e| match e {
-            NetEvent::Pose(p) => Some(p),
-            _ => None,
-        }) {
-            got = Some(p);
-            break;
-        }
-    }
-    let got = got.ok_or_else(|| anyhow::anyhow!("no pose reached the ground station"))?;
+    wait_alive(&link, &uav, true)?;
+    let got = first_pose(&link, &edge, &uav).await?;
     assert_eq!(got.uav, uav);
-
     let key = Keys::new(fleet.clone()).uav_key::<TrackReport>(&uav);
-    // Put until the tracks subscription has reached us too: its declaration
-    // travels apart from the poses' (a single put raced it under load).
-    let mut error = None;
-    for _ in 0..50 {
-        session
-            .put(
-                key.clone(),
-                br#"{"schema": 9, "kind": "tracks", "body": {}}"#.to_vec(),
-            )
-            .await
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        if let Ok(e) = wait_for(&link.events, Duration::from_millis(100), |e| match e {
-            NetEvent::Rejected { key: k, error } if k == key => Some(error),
-            _ => None,
-        }) {
-            error = Some(e);
-            break;
-        }
-    }
-    let error = error.ok_or_else(|| anyhow::anyhow!("no rejection reached the ground station"))?;
+    let error = first_rejection(&link, &session, &key).await?;
     assert!(error.contains("schema version 9"), "{error}");
 
     // A correction from the ground station reaches the edge.
@@ -143,25 +157,15 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         tower_id: Some("B1".into()),
         issued_by: "test".into(),
     };
-    link.commands
-        .send(NetCommand::Correct(correction.clone()))
-        .map_err(|_| anyhow::anyhow!("network thread gone"))?;
+    command(&link, NetCommand::Correct(correction.clone()))?;
     let received = tokio::time::timeout(Duration::from_secs(5), edge.next_correction()).await?;
     assert_eq!(received, correction);
 
     // The edge goes away: its token is deleted.
     drop(edge);
-    wait_for(&link.events, Duration::from_secs(10), |e| match e {
-        NetEvent::Alive {
-            uav: u,
-            alive: false,
-        } if u == uav => Some(()),
-        _ => None,
-    })?;
+    wait_alive(&link, &uav, false)?;
 
-    link.commands
-        .send(NetCommand::StopRecording)
-        .map_err(|_| anyhow::anyhow!("network thread gone"))?;
+    command(&link, NetCommand::StopRecording)?;
     let notice = wait_for(&link.events, Duration::from_secs(5), |e| match e {
         NetEvent::Notice(n) if n.starts_with("recorded") => Some(n),
         _ => None,

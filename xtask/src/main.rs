@@ -107,6 +107,8 @@ enum Prerequisite {
     Xvfb,
     /// rustfmt and clippy.
     LintComponents,
+    /// pymavlink, the independent MAVLink decoder the autopilot-link test listens with.
+    Pymavlink,
 }
 
 impl Task {
@@ -115,7 +117,7 @@ impl Task {
         match self {
             Self::Demo(args) if args.detector == "oracle" => vec![],
             Self::Demo(_) | Self::BenchEdge => vec![OnnxRuntime],
-            Self::Test => vec![LintComponents, OnnxRuntime, Ffmpeg],
+            Self::Test => vec![LintComponents, OnnxRuntime, Ffmpeg, Pymavlink],
             Self::Screenshot { .. } => vec![Xvfb],
             Self::Gs | Self::Train { .. } | Self::Quantize | Self::SetupOrt => vec![],
         }
@@ -131,9 +133,38 @@ fn install(root: &Path, task: &Task) -> anyhow::Result<Option<PathBuf>> {
             Prerequisite::Ffmpeg => system_packages::ensure_program("ffmpeg", "ffmpeg")?,
             Prerequisite::Xvfb => system_packages::ensure_program("xvfb-run", "xvfb")?,
             Prerequisite::LintComponents => ensure_components()?,
+            Prerequisite::Pymavlink => ensure_pymavlink(root)?,
         }
     }
     Ok(ort)
+}
+
+/// The pymavlink release the tests decode with (its dialects know
+/// GLOBAL_POSITION_SENSOR and ODOMETRY's quality).
+const PYMAVLINK_VERSION: &str = "2.4.50";
+
+/// `.pydeps/` under the workspace, holding pymavlink from the Python package
+/// index; the tests find it through `TOWERNAV_PYTHONPATH`.
+fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
+    let dir = root.join(".pydeps");
+    let marker = dir.join(format!("pymavlink-{PYMAVLINK_VERSION}.dist-info"));
+    if marker.exists() {
+        return Ok(());
+    }
+    run(Command::new("python3")
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+            "--upgrade",
+            "--target",
+        ])
+        .arg(&dir)
+        .arg(format!("pymavlink=={PYMAVLINK_VERSION}")))?;
+    eprintln!("xtask: pymavlink {PYMAVLINK_VERSION} in {}", dir.display());
+    Ok(())
 }
 
 /// The ONNX Runtime release whose C API the `ort` crate's `api-31` feature speaks.
@@ -359,6 +390,7 @@ fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
         Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
             .args(["test", "--workspace", "--no-fail-fast"])
             .env("ORT_DYLIB_PATH", ort)
+            .env("TOWERNAV_PYTHONPATH", root.join(".pydeps"))
             .current_dir(root),
     )
 }
@@ -393,6 +425,7 @@ mod tests {
             Prerequisite::OnnxRuntime,
             Prerequisite::Ffmpeg,
             Prerequisite::LintComponents,
+            Prerequisite::Pymavlink,
         ] {
             assert!(test.contains(&need), "{need:?}");
         }

@@ -3,8 +3,10 @@
 //! `towernav-edge print-config` writes the defaults as a starting file.
 
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
+use towernav_core::autopilot_link::{LinkConfig, PositionMessage};
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -225,9 +227,28 @@ pub struct PipelineSection {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MavlinkMessages {
+    /// GPS_INPUT: a GNSS stand-in (ArduPilot, PX4).
     GpsInput,
+    /// ODOMETRY: external vision (PX4's EKF2 EV fusion, ArduPilot's VISO).
     Odometry,
+    /// GPS_INPUT and ODOMETRY.
     Both,
+    /// GLOBAL_POSITION_SENSOR: PX4's auxiliary global position (AGP).
+    AuxGlobalPosition,
+}
+
+impl MavlinkMessages {
+    pub fn position(self) -> Option<PositionMessage> {
+        match self {
+            Self::GpsInput | Self::Both => Some(PositionMessage::GpsInput),
+            Self::AuxGlobalPosition => Some(PositionMessage::AuxGlobalPosition),
+            Self::Odometry => None,
+        }
+    }
+
+    pub fn odometry(self) -> bool {
+        matches!(self, Self::Odometry | Self::Both)
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -237,8 +258,35 @@ pub struct MavlinkSection {
     /// `udpout:<host>:<port>`, or `serial:<device>:<baud>`.
     pub address: String,
     pub messages: MavlinkMessages,
+    /// The position message's rate (GPS_INPUT or GLOBAL_POSITION_SENSOR), Hz.
     pub rate_hz: f64,
+    /// ODOMETRY's rate, Hz: the filter's prediction between frames (PX4 wants 30-50).
+    pub odometry_rate_hz: f64,
+    /// The vehicle's system id: the autopilot's own.
     pub system_id: u8,
+    /// This component's id: 197, MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY, by default.
+    pub component_id: u8,
+    /// The fix is 3-D only this long after a tower fix, seconds.
+    pub fresh_fix_s: f64,
+    /// Coasting, the fix is 2-D this long after the last tower fix, then none.
+    pub coast_fix_s: f64,
+}
+
+impl MavlinkSection {
+    /// What the core's link sends, and when.
+    pub fn link_config(&self, accel_sigma: f64) -> LinkConfig {
+        let every = |hz: f64| Duration::from_secs_f64(1.0 / hz);
+        LinkConfig {
+            position: self.messages.position().map(|m| (m, every(self.rate_hz))),
+            odometry_every: self
+                .messages
+                .odometry()
+                .then(|| every(self.odometry_rate_hz)),
+            fresh_fix: Duration::from_secs_f64(self.fresh_fix_s),
+            coast_fix: Duration::from_secs_f64(self.coast_fix_s),
+            accel_sigma,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -342,7 +390,15 @@ impl Default for MavlinkSection {
             address: "udpout:127.0.0.1:14550".into(),
             messages: MavlinkMessages::GpsInput,
             rate_hz: 5.0,
+            odometry_rate_hz: 30.0,
             system_id: 1,
+            // The edge is a vision position source: the VIO component id names
+            // it so to the autopilot's and ground station's component lists,
+            // and leaves 191 to a companion computer's general software
+            // (MAVROS, mavlink-router) on the same vehicle.
+            component_id: 197,
+            fresh_fix_s: 1.0,
+            coast_fix_s: 5.0,
         }
     }
 }
@@ -547,10 +603,28 @@ impl EdgeConfig {
         let invalid =
             |field: &'static str, reason: String| Err(ConfigError::Invalid { field, reason });
         if self.mavlink.enabled {
-            if !(self.mavlink.rate_hz > 0.0 && self.mavlink.rate_hz <= 50.0) {
+            let m = &self.mavlink;
+            for (field, hz) in [
+                ("mavlink.rate_hz", m.rate_hz),
+                ("mavlink.odometry_rate_hz", m.odometry_rate_hz),
+            ] {
+                if !(hz > 0.0 && hz <= 50.0) {
+                    return invalid(field, format!("{hz} is not in (0, 50]"));
+                }
+            }
+            if !(m.fresh_fix_s > 0.0 && m.fresh_fix_s <= m.coast_fix_s && m.coast_fix_s <= 60.0) {
                 return invalid(
-                    "mavlink.rate_hz",
-                    format!("{} is not in (0, 50]", self.mavlink.rate_hz),
+                    "mavlink.fresh_fix_s",
+                    format!(
+                        "{} and coast_fix_s {}: need 0 < fresh_fix_s <= coast_fix_s <= 60",
+                        m.fresh_fix_s, m.coast_fix_s
+                    ),
+                );
+            }
+            if m.component_id == 0 {
+                return invalid(
+                    "mavlink.component_id",
+                    "0 is the broadcast id, not a component's".into(),
                 );
             }
             if !(self.mavlink.address.starts_with("udpout:")

@@ -1,91 +1,106 @@
-//! Estimates to the autopilot over MAVLink (UDP, or serial), at a set rate.
+//! The MAVLink link's I/O (UDP, or serial): sends what the core's
+//! `AutopilotLink` queues, and hands what the autopilot sends back to the loop.
 
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::sync::Arc;
 
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MavConnection, MavHeader};
-use towernav_geometry::Attitude;
-use towernav_protocol::{EdgeState, PoseEstimate};
+use tokio::sync::mpsc;
 
-use super::config::{MavlinkMessages, MavlinkSection};
-use towernav_core::autopilot::{gps_input, odometry};
+use super::config::MavlinkSection;
 
 #[derive(Debug, thiserror::Error)]
-#[error("MAVLink output {address}: {reason}")]
+#[error("MAVLink link {address}: {reason}")]
 pub struct MavlinkError {
     pub address: String,
     pub reason: String,
 }
 
+type Connection = Arc<dyn MavConnection<MavMessage> + Send + Sync>;
+
 pub struct MavlinkOut {
-    conn: Box<dyn MavConnection<MavMessage> + Send + Sync>,
+    conn: Connection,
     address: String,
-    messages: MavlinkMessages,
-    every: Duration,
-    last: Option<Instant>,
     header: MavHeader,
     pub sent: u64,
 }
 
 impl MavlinkOut {
-    pub fn open(config: &MavlinkSection) -> Result<Self, MavlinkError> {
+    /// Opens the link; the autopilot's messages arrive on the returned channel
+    /// (read on a thread of its own, as the connection blocks).
+    pub fn open(
+        config: &MavlinkSection,
+    ) -> Result<(Self, mpsc::Receiver<MavMessage>), MavlinkError> {
         let conn = mavlink::connect::<MavMessage>(&config.address).map_err(|e| MavlinkError {
             address: config.address.clone(),
             reason: e.to_string(),
         })?;
-        Ok(Self {
-            conn: Box::new(conn),
-            address: config.address.clone(),
-            messages: config.messages,
-            every: Duration::from_secs_f64(1.0 / config.rate_hz),
-            last: None,
-            // A companion computer's component id (MAV_COMP_ID_ONBOARD_COMPUTER).
-            header: MavHeader {
-                system_id: config.system_id.into(),
-                component_id: 191,
-                sequence: 0,
+        let conn: Connection = Arc::new(conn);
+        let (tx, rx) = mpsc::channel(64);
+        let reader = conn.clone();
+        std::thread::Builder::new()
+            .name("mavlink-in".into())
+            .spawn(move || read_loop(reader, tx))
+            .map_err(|e| MavlinkError {
+                address: config.address.clone(),
+                reason: format!("starting its reader: {e}"),
+            })?;
+        Ok((
+            Self {
+                conn,
+                address: config.address.clone(),
+                header: MavHeader {
+                    system_id: config.system_id.into(),
+                    component_id: config.component_id,
+                    sequence: 0,
+                },
+                sent: 0,
             },
-            sent: 0,
-        })
+            rx,
+        ))
     }
 
-    /// Send `pose` if the rate allows; returns whether it went out.
-    pub fn offer(
-        &mut self,
-        pose: &PoseEstimate,
-        state: EdgeState,
-        attitude: &Attitude,
-    ) -> Result<bool, MavlinkError> {
-        if self.last.is_some_and(|t| t.elapsed() < self.every) {
-            return Ok(false);
+    /// Sends one message with the next sequence number.
+    pub fn send(&mut self, message: &MavMessage) -> Result<(), MavlinkError> {
+        self.conn
+            .send(&self.header, message)
+            .map_err(|e| MavlinkError {
+                address: self.address.clone(),
+                reason: e.to_string(),
+            })?;
+        self.header.sequence = self.header.sequence.wrapping_add(1);
+        self.sent += 1;
+        Ok(())
+    }
+}
+
+/// Forwards the autopilot's messages until the loop stops listening. Bad
+/// frames (CRC, unknown ids) are skipped as the parser resynchronises; a
+/// link that keeps failing is told once, not per frame.
+fn read_loop(conn: Connection, tx: mpsc::Sender<MavMessage>) {
+    let mut failures = 0u64;
+    loop {
+        match conn.recv() {
+            Ok((_, message)) => {
+                failures = 0;
+                // Full: the loop is behind; dropping an old TIMESYNC is harmless.
+                match tx.try_send(message) {
+                    Ok(()) | Err(mpsc::error::TrySendError::Full(_)) => {}
+                    Err(mpsc::error::TrySendError::Closed(_)) => return,
+                }
+            }
+            Err(e) => {
+                failures += 1;
+                if failures == 100 {
+                    tracing::warn!(error = %e, "MAVLink input keeps failing");
+                }
+                if tx.is_closed() {
+                    return;
+                }
+                if failures > 100 {
+                    std::thread::sleep(std::time::Duration::from_millis(100));
+                }
+            }
         }
-        self.last = Some(Instant::now());
-        let now_us = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_micros() as u64);
-        let mut out = Vec::with_capacity(2);
-        if matches!(
-            self.messages,
-            MavlinkMessages::GpsInput | MavlinkMessages::Both
-        ) {
-            out.push(MavMessage::GPS_INPUT(gps_input(pose, state, now_us)));
-        }
-        if matches!(
-            self.messages,
-            MavlinkMessages::Odometry | MavlinkMessages::Both
-        ) {
-            out.push(MavMessage::ODOMETRY(odometry(pose, attitude, now_us)));
-        }
-        for message in &out {
-            self.header.sequence = self.header.sequence.wrapping_add(1);
-            self.conn
-                .send(&self.header, message)
-                .map_err(|e| MavlinkError {
-                    address: self.address.clone(),
-                    reason: e.to_string(),
-                })?;
-            self.sent += 1;
-        }
-        Ok(true)
     }
 }

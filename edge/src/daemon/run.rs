@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 
 use image::RgbImage;
 use image::codecs::jpeg::JpegEncoder;
+use mavlink::dialects::common::MavMessage;
 use towernav_core::daemon::{
     Command, DaemonCore, DetectedFrame, FrameObserver, Output, SourceCounters,
 };
@@ -37,7 +38,8 @@ pub struct RunOptions {
     /// The detector, for the report: "oracle" or the model's file name.
     pub detector_name: String,
     pub jsonl: Option<std::path::PathBuf>,
-    pub mavlink: Option<MavlinkOut>,
+    /// The autopilot link, and what the autopilot sends on it.
+    pub mavlink: Option<(MavlinkOut, tokio::sync::mpsc::Receiver<MavMessage>)>,
     pub annotate_dir: Option<std::path::PathBuf>,
     /// The detector's classes, each new landmark set checked against them
     /// (`None`: the oracle, which reports the surveyed types themselves).
@@ -61,7 +63,6 @@ pub struct Daemon<'a> {
 /// What happened, for the report and the closing log.
 pub struct RunSummary {
     pub record: FlightRecord,
-    /// Frame-to-publish latency of every processed frame, milliseconds.
     /// Frame-to-publish latency over the whole run, p50 and p99, milliseconds.
     pub latency_ms: (f64, f64),
     pub dropped: u64,
@@ -74,6 +75,7 @@ enum Event {
     Frame(Option<Detected>),
     Correction(IdCorrection),
     Landmarks(Option<Sample>),
+    Autopilot(MavMessage),
     Timer,
 }
 
@@ -91,6 +93,7 @@ struct Sinks<'a> {
     datum: Datum,
     jsonl: Option<std::io::BufWriter<std::fs::File>>,
     mavlink: Option<MavlinkOut>,
+    mavlink_errors: u64,
     annotate_dir: Option<std::path::PathBuf>,
     record: FlightRecord,
     pacing: Pacing,
@@ -126,7 +129,8 @@ impl Daemon<'_> {
         let worker_task = tokio::task::spawn_blocking(move || worker.run(worker_queue, frames_tx));
 
         let classes = options.classes.take();
-        let mut sinks = Sinks::new(node, datum, &mut options)?;
+        let (link, mut from_autopilot) = options.mavlink.take().unzip();
+        let mut sinks = Sinks::new(node, datum, &mut options, link)?;
         let counters = || SourceCounters {
             dropped: queue.dropped(),
             failed: failed_source.load(Ordering::Relaxed),
@@ -138,30 +142,22 @@ impl Daemon<'_> {
                 detected = frames_rx.recv() => Event::Frame(detected),
                 correction = node.next_correction() => Event::Correction(correction),
                 change = next_change(sync.as_deref()) => Event::Landmarks(change),
+                Some(message) = next_message(from_autopilot.as_mut()) => Event::Autopilot(message),
                 () = tokio::time::sleep_until(deadline) => Event::Timer,
             };
             match event {
                 Event::Frame(None) => break,
                 Event::Frame(Some(detected)) => {
                     let seq = detected.frame.seq;
-                    let (frame, image, truth) =
-                        (detected.frame, detected.image, detected.truth_in_world);
-                    let time_s = frame.time_s;
-                    let seconds;
-                    (core, seconds) = process(core, frame).await?;
-                    sinks.record.core_seconds += seconds;
-                    let processed = Processed {
-                        seq,
-                        time_s,
-                        image,
-                        truth,
-                    };
-                    sinks
-                        .frame(&mut core, processed, observer.as_deref_mut())
+                    core = sinks
+                        .detected(core, detected, observer.as_deref_mut())
                         .await?;
                     on_frame(seq);
                 }
                 Event::Correction(c) => core.handle_command(Instant::now(), Command::Correct(c)),
+                Event::Autopilot(m) => {
+                    core.handle_command(Instant::now(), Command::FromAutopilot(m))
+                }
                 Event::Landmarks(change) => {
                     let changed =
                         changed_map(sync.as_deref_mut(), change, &datum, classes.as_deref());
@@ -191,21 +187,8 @@ impl Daemon<'_> {
         if let Some(log) = sinks.jsonl.as_mut() {
             let _ = log.flush();
         }
-        let summary = RunSummary {
-            failed: totals.failed + failed_source.load(Ordering::Relaxed),
-            dropped: queue.dropped(),
-            mavlink_sent: sinks.mavlink.as_ref().map_or(0, |m| m.sent),
-            record: FlightRecord {
-                frames: core.frames(),
-                poses_published: core.poses(),
-                detect_seconds: totals.detect_seconds,
-                detector_errors: totals.failed,
-                detector: (options.detector_name != "oracle")
-                    .then(|| options.detector_name.clone()),
-                ..sinks.record
-            },
-            latency_ms: core.latency_percentiles(),
-        };
+        let failed = totals.failed + failed_source.load(Ordering::Relaxed);
+        let summary = sinks.summary(&core, &totals, failed, queue.dropped(), &options);
         log_stop(&summary, options.pacing);
         Ok(summary)
     }
@@ -213,12 +196,18 @@ impl Daemon<'_> {
 
 impl<'a> Sinks<'a> {
     /// The sinks `options` ask for; takes its MAVLink link and folders.
-    fn new(node: &'a EdgeNode, datum: Datum, options: &mut RunOptions) -> Result<Self, ShellError> {
+    fn new(
+        node: &'a EdgeNode,
+        datum: Datum,
+        options: &mut RunOptions,
+        mavlink: Option<MavlinkOut>,
+    ) -> Result<Self, ShellError> {
         Ok(Self {
             node,
             datum,
             jsonl: open_jsonl(options.jsonl.as_deref())?,
-            mavlink: options.mavlink.take(),
+            mavlink,
+            mavlink_errors: 0,
             annotate_dir: options.annotate_dir.take(),
             record: FlightRecord::default(),
             pacing: options.pacing,
@@ -227,6 +216,51 @@ impl<'a> Sinks<'a> {
     }
 
     /// One frame the core has processed: to the observer, and out.
+    /// A detected frame through the core (off the runtime's threads), then out.
+    async fn detected(
+        &mut self,
+        core: DaemonCore,
+        detected: Detected,
+        observer: Option<&mut (dyn FrameObserver + 'static)>,
+    ) -> Result<DaemonCore, ShellError> {
+        let processed = Processed {
+            seq: detected.frame.seq,
+            time_s: detected.frame.time_s,
+            image: detected.image,
+            truth: detected.truth_in_world,
+        };
+        let (mut core, seconds) = process(core, detected.frame).await?;
+        self.record.core_seconds += seconds;
+        self.frame(&mut core, processed, observer).await?;
+        Ok(core)
+    }
+
+    /// The run's summary once the loop is done: the core's counts, the sinks' and the worker's.
+    fn summary(
+        self,
+        core: &DaemonCore,
+        totals: &WorkerTotals,
+        failed: u64,
+        dropped: u64,
+        options: &RunOptions,
+    ) -> RunSummary {
+        RunSummary {
+            failed,
+            dropped,
+            mavlink_sent: self.mavlink.as_ref().map_or(0, |m| m.sent),
+            record: FlightRecord {
+                frames: core.frames(),
+                poses_published: core.poses(),
+                detect_seconds: totals.detect_seconds,
+                detector_errors: totals.failed,
+                detector: (options.detector_name != "oracle")
+                    .then(|| options.detector_name.clone()),
+                ..self.record
+            },
+            latency_ms: core.latency_percentiles(),
+        }
+    }
+
     async fn frame(
         &mut self,
         core: &mut DaemonCore,
@@ -268,17 +302,8 @@ impl<'a> Sinks<'a> {
         let mut pose: Option<PoseEstimate> = None;
         while let Some(output) = core.poll_output() {
             match output {
-                Output::Pose {
-                    pose: p,
-                    state,
-                    attitude,
-                } => {
+                Output::Pose { pose: p, .. } => {
                     self.node.publish_pose(&p).await?;
-                    if let Some(out) = self.mavlink.as_mut()
-                        && let Err(e) = out.offer(&p, state, &attitude)
-                    {
-                        tracing::warn!(error = %e, "MAVLink send failed");
-                    }
                     self.log_pose(&p);
                     pose = Some(p);
                 }
@@ -305,6 +330,17 @@ impl<'a> Sinks<'a> {
                     }
                 }
                 Output::Ack(ack) => self.node.acknowledge(&ack).await?,
+                Output::Mavlink(message) => {
+                    if let Some(out) = self.mavlink.as_mut()
+                        && let Err(e) = out.send(&message)
+                    {
+                        self.mavlink_errors += 1;
+                        // Once, then every 100th: an unplugged link must not flood the log.
+                        if self.mavlink_errors % 100 == 1 {
+                            tracing::warn!(error = %e, failures = self.mavlink_errors, "MAVLink send failed");
+                        }
+                    }
+                }
                 Output::Status(status) => {
                     self.node.publish_status(&status).await?;
                     if !self.warned_drops
@@ -389,6 +425,19 @@ async fn changed_map(
 }
 
 /// The next landmark change, or never when there is no sync.
+/// The autopilot's next message; pending forever without a link, or once it closed.
+async fn next_message(
+    rx: Option<&mut tokio::sync::mpsc::Receiver<MavMessage>>,
+) -> Option<MavMessage> {
+    match rx {
+        Some(rx) => match rx.recv().await {
+            Some(m) => Some(m),
+            None => std::future::pending().await,
+        },
+        None => std::future::pending().await,
+    }
+}
+
 async fn next_change(sync: Option<&LandmarkSync>) -> Option<Sample> {
     match sync {
         Some(sync) => match sync.next_change().await {
