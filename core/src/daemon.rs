@@ -82,6 +82,24 @@ pub enum Output {
     Status(StatusHeartbeat),
     /// To the autopilot.
     Mavlink(MavMessage),
+    /// The autopilot's own GNSS position, for a survey flight's record.
+    AutopilotPosition(SurveyPosition),
+}
+
+/// The autopilot's GNSS position as it arrived, with the frame seen last.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SurveyPosition {
+    /// UTC when it arrived, microseconds (the link's clock).
+    pub unix_us: u64,
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub alt_msl_m: f64,
+    /// Above the WGS84 ellipsoid (through the geoid).
+    pub height_m: f64,
+    pub heading_deg: Option<f64>,
+    /// The last processed frame: its seq and source time.
+    pub frame_seq: Option<u64>,
+    pub frame_time_s: f64,
 }
 
 /// Frames the source dropped or failed, as totals since start.
@@ -249,11 +267,24 @@ impl DaemonCore {
                     return;
                 };
                 link.handle_message(now, &message);
-                // The autopilot's GNSS, while it has one, says where to start.
-                if let (MavMessage::GLOBAL_POSITION_INT(_), Some(p)) =
+                let (MavMessage::GLOBAL_POSITION_INT(_), Some(p)) =
                     (&message, link.autopilot_position())
-                    && let Ok(place) = Geodetic::new(p.lat_deg, p.lon_deg, p.height_m)
-                {
+                else {
+                    return;
+                };
+                self.outputs
+                    .push_back(Output::AutopilotPosition(SurveyPosition {
+                        unix_us: link.unix_us(p.received),
+                        lat_deg: p.lat_deg,
+                        lon_deg: p.lon_deg,
+                        alt_msl_m: p.alt_msl_m,
+                        height_m: p.height_m,
+                        heading_deg: p.heading_rad.map(f64::to_degrees),
+                        frame_seq: self.last.as_ref().map(|o| o.seq),
+                        frame_time_s: self.last_time_s,
+                    }));
+                // The autopilot's GNSS, while it has one, says where to start.
+                if let Ok(place) = Geodetic::new(p.lat_deg, p.lon_deg, p.height_m) {
                     let point = self.config.datum.to_enu(&place);
                     self.pipeline.hint_position(self.last_time_s, point);
                 }

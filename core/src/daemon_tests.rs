@@ -272,6 +272,14 @@ fn the_autopilot_s_gnss_position_starts_the_pipeline_where_the_uav_is() {
     );
     let p = core.pipeline().predicted_position(0.0).expect("hinted");
     assert!((p - Point3::new(200.0, 0.0, 40.0)).norm() < 0.05, "{p}");
+    // And it goes out for the survey record.
+    let recorded = drain(&mut core).into_iter().find_map(|o| match o {
+        Output::AutopilotPosition(p) => Some(p),
+        _ => None,
+    });
+    let recorded = recorded.expect("recorded");
+    assert!((recorded.height_m - place.height_m).abs() < 0.01);
+    assert_eq!(recorded.frame_seq, None, "no frame yet");
 }
 
 #[test]

@@ -204,6 +204,7 @@ fn run_options(
         queue: config.source.queue,
         detector_name,
         jsonl: config.output.jsonl.clone(),
+        autopilot_log: config.output.autopilot_log.clone(),
         mavlink: config
             .mavlink
             .enabled

@@ -7,7 +7,7 @@ unknown id, broken framing).
 
 It stops after SECONDS, or as soon as its standard input closes.
 With REPLY, it also plays the autopilot's side once a second: a TIMESYNC
-request, which the edge must answer.
+request, which the edge must answer, and a GLOBAL_POSITION_INT.
 """
 
 import json
@@ -36,6 +36,9 @@ while time.monotonic() - start < seconds and not stop.is_set():
     # Once the edge has been heard, pymavlink knows where to reply.
     if reply and messages and time.monotonic() >= next_sync:
         conn.mav.timesync_send(0, int(now * 1e9))
+        # Its own GNSS position, as an autopilot streams it: 30.5205 N,
+        # 114.3601 E, 50 m above mean sea level, heading east.
+        conn.mav.global_position_int_send(int(now * 1e3), 305205000, 1143601000, 50000, 30000, 0, 0, 0, 9000)
         next_sync += 1.0
     if msg is None:
         continue

@@ -210,6 +210,7 @@ fn leave_and_return(port: u16, jsonl: std::path::PathBuf) -> EdgeConfig {
         )
         .into(),
     );
+    config.output.autopilot_log = Some(jsonl.with_file_name("autopilot.jsonl"));
     config.output.jsonl = Some(jsonl);
     config.mavlink.enabled = true;
     config.mavlink.address = format!("udpout:127.0.0.1:{port}");
@@ -284,6 +285,23 @@ async fn pymavlink_decodes_an_honest_link_through_a_flight_that_leaves_the_tower
     let syncs = heard.of("TIMESYNC");
     assert!(!syncs.is_empty(), "no TIMESYNC answer");
     assert!(syncs.iter().all(|s| s.f64("tc1") > 0.0));
+    // And records the autopilot's GNSS positions, each with its frame.
+    let log = std::fs::read_to_string(dir.path().join("autopilot.jsonl"))?;
+    let records: Vec<serde_json::Value> = log
+        .lines()
+        .map(serde_json::from_str)
+        .collect::<Result<_, _>>()?;
+    assert!(
+        records.len() as f64 >= wall_s - 3.0,
+        "{} records",
+        records.len()
+    );
+    let last = records.last().expect("a record");
+    assert!((last["lat_deg"].as_f64().unwrap_or(0.0) - 30.5205).abs() < 1e-9);
+    let n = towernav_geometry::geoid_height_m(30.5205, 114.3601);
+    assert!((last["height_m"].as_f64().unwrap_or(0.0) - (50.0 + n)).abs() < 1e-3);
+    assert_eq!(last["heading_deg"].as_f64(), Some(90.0));
+    assert!(last["frame_seq"].as_u64().is_some(), "{last}");
     Ok(())
 }
 

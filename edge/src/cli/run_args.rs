@@ -97,7 +97,7 @@ pub struct RunArgs {
     /// Inference on CUDA (build with `--features cuda`).
     #[arg(long)]
     pub cuda: bool,
-    /// Send GPS_INPUT/ODOMETRY to the autopilot at this MAVLink address (udpout:host:port).
+    /// Talk to the autopilot at this MAVLink address (udpout:host:port, or serial:device:baud).
     #[arg(long)]
     pub mavlink: Option<String>,
     /// Write every published estimate as a JSON line here.
@@ -106,6 +106,10 @@ pub struct RunArgs {
     /// Write annotated frames (JPEG) into this folder.
     #[arg(long)]
     pub annotate: Option<PathBuf>,
+    /// Write the autopilot's own GNSS positions (GLOBAL_POSITION_INT) as JSON
+    /// lines here, each with the frame it came during: a survey flight's record.
+    #[arg(long)]
+    pub autopilot_log: Option<PathBuf>,
 }
 
 /// A config enum from its flag spelling (the same as in the TOML file).
@@ -207,6 +211,9 @@ impl RunArgs {
         }
         if let Some(v) = &self.annotate {
             c.output.annotated = Some(v.clone());
+        }
+        if let Some(v) = &self.autopilot_log {
+            c.output.autopilot_log = Some(v.clone());
         }
         c.validate()?;
         Ok(c)

@@ -299,6 +299,9 @@ pub struct OutputSection {
     pub annotated: Option<PathBuf>,
     /// JPEG previews per second on Zenoh; 0: none.
     pub preview_hz: f64,
+    /// The autopilot's GNSS positions (MAVLink GLOBAL_POSITION_INT), one JSON
+    /// line each with the frame seen last: what a survey flight records.
+    pub autopilot_log: Option<PathBuf>,
 }
 
 impl Default for EdgeConfig {
@@ -409,6 +412,7 @@ impl Default for OutputSection {
             jsonl: None,
             annotated: None,
             preview_hz: 2.0,
+            autopilot_log: None,
         }
     }
 }
@@ -638,6 +642,12 @@ impl EdgeConfig {
                     ),
                 );
             }
+        }
+        if self.output.autopilot_log.is_some() && !self.mavlink.enabled {
+            return invalid(
+                "output.autopilot_log",
+                "needs the MAVLink link: set mavlink.enabled (or --mavlink)".into(),
+            );
         }
         if !(self.output.preview_hz >= 0.0 && self.output.preview_hz <= 30.0) {
             return invalid(

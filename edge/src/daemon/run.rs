@@ -38,6 +38,8 @@ pub struct RunOptions {
     /// The detector, for the report: "oracle" or the model's file name.
     pub detector_name: String,
     pub jsonl: Option<std::path::PathBuf>,
+    /// The autopilot's GNSS positions, one JSON line each.
+    pub autopilot_log: Option<std::path::PathBuf>,
     /// The autopilot link, and what the autopilot sends on it.
     pub mavlink: Option<(MavlinkOut, tokio::sync::mpsc::Receiver<MavMessage>)>,
     pub annotate_dir: Option<std::path::PathBuf>,
@@ -94,6 +96,7 @@ struct Sinks<'a> {
     jsonl: Option<std::io::BufWriter<std::fs::File>>,
     mavlink: Option<MavlinkOut>,
     mavlink_errors: u64,
+    autopilot_log: Option<std::io::BufWriter<std::fs::File>>,
     annotate_dir: Option<std::path::PathBuf>,
     record: FlightRecord,
     pacing: Pacing,
@@ -184,7 +187,10 @@ impl Daemon<'_> {
         if source_thread.is_finished() {
             let _ = source_thread.join();
         }
-        if let Some(log) = sinks.jsonl.as_mut() {
+        for log in [sinks.jsonl.as_mut(), sinks.autopilot_log.as_mut()]
+            .into_iter()
+            .flatten()
+        {
             let _ = log.flush();
         }
         let failed = totals.failed + failed_source.load(Ordering::Relaxed);
@@ -208,6 +214,7 @@ impl<'a> Sinks<'a> {
             jsonl: open_jsonl(options.jsonl.as_deref())?,
             mavlink,
             mavlink_errors: 0,
+            autopilot_log: open_jsonl(options.autopilot_log.as_deref())?,
             annotate_dir: options.annotate_dir.take(),
             record: FlightRecord::default(),
             pacing: options.pacing,
@@ -330,6 +337,15 @@ impl<'a> Sinks<'a> {
                     }
                 }
                 Output::Ack(ack) => self.node.acknowledge(&ack).await?,
+                Output::AutopilotPosition(position) => {
+                    if let Some(log) = self.autopilot_log.as_mut()
+                        && let Ok(line) = serde_json::to_string(&position)
+                        && writeln!(log, "{line}").is_err()
+                    {
+                        tracing::warn!("the autopilot log could not be written; stopping it");
+                        self.autopilot_log = None;
+                    }
+                }
                 Output::Mavlink(message) => {
                     if let Some(out) = self.mavlink.as_mut()
                         && let Err(e) = out.send(&message)
@@ -500,9 +516,7 @@ fn open_jsonl(
     path.map(|path| {
         std::fs::File::create(path)
             .map(std::io::BufWriter::new)
-            .map_err(|e| {
-                ShellError::Daemon(format!("creating the JSONL log {}: {e}", path.display()))
-            })
+            .map_err(|e| ShellError::Daemon(format!("creating the log {}: {e}", path.display())))
     })
     .transpose()
 }
