@@ -283,8 +283,12 @@ impl DaemonCore {
                         frame_seq: self.last.as_ref().map(|o| o.seq),
                         frame_time_s: self.last_time_s,
                     }));
-                // The autopilot's GNSS, while it has one, says where to start.
-                if let Ok(place) = Geodetic::new(p.lat_deg, p.lon_deg, p.height_m) {
+                // The autopilot's GNSS says where to start, before the first
+                // fix only: later its position may be our own estimate fed
+                // back, or its dead reckoning once GNSS is gone.
+                if self.fixes == 0
+                    && let Ok(place) = Geodetic::new(p.lat_deg, p.lon_deg, p.height_m)
+                {
                     let point = self.config.datum.to_enu(&place);
                     self.pipeline.hint_position(self.last_time_s, point);
                 }
