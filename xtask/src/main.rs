@@ -369,30 +369,64 @@ fn ground_station(root: &Path) -> anyhow::Result<()> {
 fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
     let ort = ort.context("the tests need ONNX Runtime")?;
     cargo(root, &["fmt", "--all", "--", "--check"])?;
-    cargo(
-        root,
-        &[
-            "clippy",
-            "--workspace",
-            "--all-targets",
-            "--",
-            "-D",
-            "warnings",
-        ],
-    )?;
+    // Clippy lints while the tests build: clippy-driver compiles the
+    // workspace's own crates (as `cargo clippy` has it do), so every
+    // dependency is compiled once, for the tests, instead of checked for the
+    // lints and then built again. Warnings are errors.
+    let clippy = Clippy::find()?;
+    run(clippy
+        .cargo(root)
+        .args(["test", "--workspace", "--all-targets", "--no-run"]))?;
     // The workspace build turns the edge's demo feature on (the tests use it):
-    // lint the onboard build, which has none of it, on its own.
-    cargo(
-        root,
-        &["clippy", "-p", "towernav-edge", "--", "-D", "warnings"],
-    )?;
-    run(
-        Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-            .args(["test", "--workspace", "--no-fail-fast"])
-            .env("ORT_DYLIB_PATH", ort)
-            .env("TOWERNAV_PYTHONPATH", root.join(".pydeps"))
-            .current_dir(root),
-    )
+    // lint the onboard build, which has none of it, on its own. Its
+    // dependencies are the workspace's (build-unify/), so only it compiles.
+    run(clippy.cargo(root).args(["build", "-p", "towernav-edge"]))?;
+    run(clippy
+        .cargo(root)
+        .args(["test", "--workspace", "--no-fail-fast"])
+        .env("ORT_DYLIB_PATH", ort)
+        .env("TOWERNAV_PYTHONPATH", root.join(".pydeps")))
+}
+
+/// clippy-driver as the compiler of the workspace's own crates, with
+/// warnings denied: what `cargo clippy` sets up, around any cargo command.
+struct Clippy {
+    driver: PathBuf,
+}
+
+impl Clippy {
+    /// The driver beside the cargo running this task (the same toolchain), else on PATH.
+    fn find() -> anyhow::Result<Self> {
+        let cargo = PathBuf::from(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+        let beside = cargo.with_file_name("clippy-driver");
+        let driver = if beside.is_file() {
+            beside
+        } else {
+            PathBuf::from("clippy-driver")
+        };
+        let works = Command::new(&driver)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success());
+        anyhow::ensure!(
+            works,
+            "clippy-driver not found beside {} nor on PATH: `rustup component add clippy`",
+            cargo.display()
+        );
+        Ok(Self { driver })
+    }
+
+    fn cargo(&self, root: &Path) -> Command {
+        let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+        cmd.current_dir(root)
+            .env("RUSTC_WORKSPACE_WRAPPER", &self.driver)
+            // cargo-clippy's own way of handing lint flags to the driver.
+            .env(
+                "CLIPPY_ARGS",
+                "-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__",
+            );
+        cmd
+    }
 }
 
 #[cfg(test)]
