@@ -238,21 +238,27 @@ fn whole_run_latency_percentiles_hold_in_fixed_memory() {
     assert_eq!(core.latency_count(), 100);
 }
 
-#[test]
-fn the_autopilot_s_gnss_position_starts_the_pipeline_where_the_uav_is() {
-    use mavlink::dialects::common::{GLOBAL_POSITION_INT_DATA, MavMessage};
-
+/// The test core with a MAVLink link on the default settings.
+fn core_with_autopilot(start: Instant) -> DaemonCore {
     use crate::autopilot_link::{AutopilotLink, LinkConfig};
 
-    let start = Instant::now();
     let core = core(start, None);
     let datum = core.config.datum;
-    let mut core = core.with_autopilot(AutopilotLink::new(
+    core.with_autopilot(AutopilotLink::new(
         LinkConfig::default(),
         datum,
         start,
         1_795_305_600_000_000,
-    ));
+    ))
+}
+
+#[test]
+fn the_autopilot_s_gnss_position_starts_the_pipeline_where_the_uav_is() {
+    use mavlink::dialects::common::{GLOBAL_POSITION_INT_DATA, MavMessage};
+
+    let start = Instant::now();
+    let mut core = core_with_autopilot(start);
+    let datum = core.config.datum;
     assert!(
         core.pipeline().predicted_position(0.0).is_none(),
         "nothing known yet"
@@ -284,17 +290,8 @@ fn the_autopilot_s_gnss_position_starts_the_pipeline_where_the_uav_is() {
 
 #[test]
 fn with_an_autopilot_link_the_core_beats_mavlink_through_a_camera_stall() {
-    use crate::autopilot_link::{AutopilotLink, LinkConfig};
-
     let start = Instant::now();
-    let core = core(start, None);
-    let datum = core.config.datum;
-    let mut core = core.with_autopilot(AutopilotLink::new(
-        LinkConfig::default(),
-        datum,
-        start,
-        1_795_305_600_000_000,
-    ));
+    let mut core = core_with_autopilot(start);
     let mut seq = 0;
     let outputs = run(
         &mut core,

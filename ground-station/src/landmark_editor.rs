@@ -338,7 +338,7 @@ fn form(
     let editing = state.editing.is_some();
     form_fields(ui, &mut state.form, editing, records, &errors);
     // Errors on fields the form has no box for (e.g. base width) still show.
-    for (f, e) in errors.iter().filter(|(f, _)| !BOXED_FIELDS.contains(f)) {
+    for (f, e) in errors.iter().filter(|(f, _)| !boxed(f)) {
         ui.colored_label(Color32::RED, format!("{f} {e}"));
     }
     let action = form_buttons(ui, state, records, &result);
@@ -355,18 +355,12 @@ fn form(
     action
 }
 
-/// The record fields that have a box in the form, so their errors show beside it.
-const BOXED_FIELDS: [&str; 9] = [
-    "id",
-    "tower_type",
-    "lat_deg",
-    "lon_deg",
-    "ground_elev_m",
-    "height_m",
-    "line_name",
-    "survey_source",
-    "notes",
-];
+/// Whether the form has a box for `field` (its errors show beside it): every
+/// required column, and the optional text ones.
+fn boxed(field: &str) -> bool {
+    towernav_landmark_db::fields::REQUIRED.contains(&field)
+        || ["line_name", "survey_source", "notes"].contains(&field)
+}
 
 fn form_fields(
     ui: &mut egui::Ui,

@@ -5,7 +5,7 @@
 
 pub mod csv_io;
 pub mod error;
-mod fields;
+pub mod fields;
 pub mod formats;
 pub mod import;
 pub mod load;

@@ -13,6 +13,13 @@ fn db(dir: &Path, args: &[&str]) -> Output {
         .expect("runs")
 }
 
+/// A database in `dir` holding `SURVEY`.
+fn import_survey(dir: &Path) {
+    std::fs::write(dir.join("s.csv"), SURVEY).expect("write");
+    let out = db(dir, &["import", dir.join("s.csv").to_str().expect("utf8")]);
+    assert!(out.status.success(), "{}", text(&out));
+}
+
 /// `out` exited with `code` and says `needle`.
 fn refused(out: &Output, code: i32, needle: &str) {
     assert_eq!(out.status.code(), Some(code), "{}", text(out));
@@ -127,12 +134,7 @@ fn a_surveyor_session() {
 fn geojson_out_of_one_database_and_into_another_loses_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::write(d.join("s.csv"), SURVEY).expect("write");
-    assert!(
-        db(d, &["import", d.join("s.csv").to_str().expect("utf8")])
-            .status
-            .success()
-    );
+    import_survey(d);
     assert!(db(d, &["edit", "A1", "--sigma-h", "0.05"]).status.success());
     let geojson = d.join("towers.geojson");
     let out = db(
@@ -229,12 +231,7 @@ fn towers_at_one_spot_are_summarized_not_listed_pair_by_pair() {
 fn a_writer_locked_out_past_the_wait_exits_3_from_every_command() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    std::fs::write(d.join("s.csv"), SURVEY).expect("write");
-    assert!(
-        db(d, &["import", d.join("s.csv").to_str().expect("utf8")])
-            .status
-            .success()
-    );
+    import_survey(d);
     let holder = rusqlite::Connection::open(d.join("towers.sqlite")).expect("raw connection");
     holder.execute_batch("BEGIN IMMEDIATE").expect("lock");
     let csv = d.join("s.csv");
