@@ -15,14 +15,14 @@
 //!   it goes out, with quality -1 once the pose is lost.
 //! - STATUSTEXT on every change of the fix.
 //! - TIMESYNC requests are answered, so the autopilot can map our stamps to
-//!   its clock; SYSTEM_TIME with a GNSS time sets the clock we stamp with;
+//!   its clock; an autopilot heartbeating under another system id is logged; SYSTEM_TIME with a GNSS time sets the clock we stamp with;
 //!   GLOBAL_POSITION_INT is kept as the autopilot's own position.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
-    GLOBAL_POSITION_INT_DATA, GpsFixType, MavMessage, MavSeverity, TIMESYNC_DATA,
+    GLOBAL_POSITION_INT_DATA, GpsFixType, MavAutopilot, MavMessage, MavSeverity, TIMESYNC_DATA,
 };
 use nalgebra::{Matrix3, Point3, Vector3};
 use towernav_geometry::{Attitude, Datum, Geodetic, GeoidCache};
@@ -45,6 +45,9 @@ pub enum PositionMessage {
 /// What the link is told once, at start.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinkConfig {
+    /// The vehicle's system id, which the edge sends as; an autopilot
+    /// heartbeating under another is told in the log.
+    pub system_id: u8,
     /// The position message and its period; `None`: none.
     pub position: Option<(PositionMessage, Duration)>,
     /// ODOMETRY's period; `None`: none.
@@ -61,6 +64,7 @@ pub struct LinkConfig {
 impl Default for LinkConfig {
     fn default() -> Self {
         Self {
+            system_id: 1,
             position: Some((PositionMessage::GpsInput, Duration::from_millis(200))),
             odometry_every: None,
             fresh_fix: Duration::from_secs(1),
@@ -124,6 +128,7 @@ pub struct AutopilotLink {
     health: Health,
     reported_fix: Option<GpsFixType>,
     autopilot_position: Option<AutopilotPosition>,
+    autopilot_system: Option<u8>,
     next_heartbeat: Instant,
     next_position: Instant,
     next_odometry: Instant,
@@ -147,6 +152,7 @@ impl AutopilotLink {
             health: Health::Ok,
             reported_fix: None,
             autopilot_position: None,
+            autopilot_system: None,
             next_heartbeat: now,
             next_position: now,
             next_odometry: now,
@@ -180,16 +186,27 @@ impl AutopilotLink {
         self.health = health;
     }
 
-    /// A message from the autopilot.
-    pub fn handle_message(&mut self, now: Instant, message: &MavMessage) {
+    /// A message from the autopilot, sent by `from` (system and component id).
+    pub fn handle_message(&mut self, now: Instant, from: (u8, u8), message: &MavMessage) {
         match message {
-            // A request (tc1 0): answer with our clock, in nanoseconds.
+            MavMessage::HEARTBEAT(h) if h.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID => {
+                let first = self.autopilot_system.replace(from.0).is_none();
+                if first && from.0 != self.config.system_id {
+                    tracing::warn!(
+                        autopilot = from.0,
+                        ours = self.config.system_id,
+                        "the autopilot heartbeats as another system than mavlink.system_id: it may ignore what the edge sends"
+                    );
+                }
+            }
+            // A request (tc1 0): answer with our clock, in nanoseconds, to its sender.
             MavMessage::TIMESYNC(t) if t.tc1 == 0 => {
                 let ours_ns = self.clock.unix_us(now).saturating_mul(1000) as i64;
                 self.out.push_back(MavMessage::TIMESYNC(TIMESYNC_DATA {
                     tc1: ours_ns,
                     ts1: t.ts1,
-                    ..TIMESYNC_DATA::DEFAULT
+                    target_system: from.0,
+                    target_component: from.1,
                 }));
             }
             MavMessage::SYSTEM_TIME(t) if t.time_unix_usec >= EARLIEST_REAL_UNIX_US => {
@@ -206,6 +223,11 @@ impl AutopilotLink {
             }
             _ => {}
         }
+    }
+
+    /// The system id the autopilot heartbeats as, once it has.
+    pub fn autopilot_system(&self) -> Option<u8> {
+        self.autopilot_system
     }
 
     /// The autopilot's last own position, if it has sent one.

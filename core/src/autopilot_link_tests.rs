@@ -247,6 +247,7 @@ fn timesync_is_answered_and_system_time_sets_the_clock() {
     let later = start + Duration::from_millis(1500);
     link.handle_message(
         later,
+        (1, 1),
         &MavMessage::TIMESYNC(TIMESYNC_DATA {
             tc1: 0,
             ts1: 42,
@@ -258,10 +259,16 @@ fn timesync_is_answered_and_system_time_sets_the_clock() {
         panic!("{reply:?}");
     };
     assert_eq!(t.ts1, 42, "the request's own stamp comes back");
+    assert_eq!(
+        (t.target_system, t.target_component),
+        (1, 1),
+        "to its sender"
+    );
     assert_eq!(t.tc1, ((UNIX_START_US + 1_500_000) * 1000) as i64);
     // An autopilot with GNSS time resets ours; one without (0) does not.
     link.handle_message(
         later,
+        (1, 1),
         &MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
             time_unix_usec: 0,
             time_boot_ms: 9,
@@ -270,6 +277,7 @@ fn timesync_is_answered_and_system_time_sets_the_clock() {
     assert_eq!(link.unix_us(later), UNIX_START_US + 1_500_000);
     link.handle_message(
         later,
+        (1, 1),
         &MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
             time_unix_usec: UNIX_START_US + 10_000_000,
             time_boot_ms: 9,
@@ -294,12 +302,12 @@ fn the_autopilot_s_own_position_is_kept_when_it_has_one() {
             ..GLOBAL_POSITION_INT_DATA::DEFAULT
         })
     };
-    link.handle_message(start, &position(0, 0));
+    link.handle_message(start, (1, 1), &position(0, 0));
     assert!(
         link.autopilot_position().is_none(),
         "zeros before a GNSS fix"
     );
-    link.handle_message(start, &position(305_200_000, 1_143_600_000));
+    link.handle_message(start, (1, 1), &position(305_200_000, 1_143_600_000));
     let p = link.autopilot_position().expect("kept");
     assert!((p.lat_deg - 30.52).abs() < 1e-9 && (p.alt_msl_m - 35.5).abs() < 1e-9);
     assert!((p.heading_rad.unwrap_or(0.0) - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
@@ -308,4 +316,23 @@ fn the_autopilot_s_own_position_is_kept_when_it_has_one() {
         (p.height_m - (35.5 + n)).abs() < 1e-6,
         "ellipsoidal through the geoid"
     );
+}
+
+#[test]
+fn the_autopilot_s_system_id_is_learned_from_its_heartbeat() {
+    use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot};
+
+    let start = Instant::now();
+    let mut link = link(LinkConfig::default(), start);
+    let beat = |autopilot| {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            autopilot,
+            ..HEARTBEAT_DATA::DEFAULT
+        })
+    };
+    // Another onboard component (a camera, say) is not the autopilot.
+    link.handle_message(start, (7, 100), &beat(MavAutopilot::MAV_AUTOPILOT_INVALID));
+    assert_eq!(link.autopilot_system(), None);
+    link.handle_message(start, (2, 1), &beat(MavAutopilot::MAV_AUTOPILOT_PX4));
+    assert_eq!(link.autopilot_system(), Some(2));
 }

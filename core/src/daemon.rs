@@ -58,8 +58,12 @@ pub struct DetectedFrame {
 pub enum Command {
     Correct(IdCorrection),
     ReplaceMap(LandmarkMap),
-    /// A message from the autopilot, for the MAVLink link.
-    FromAutopilot(MavMessage),
+    /// A message from the autopilot, for the MAVLink link, with its sender's
+    /// system and component id.
+    FromAutopilot {
+        from: (u8, u8),
+        message: MavMessage,
+    },
 }
 
 /// What the shell is to send or do.
@@ -262,11 +266,11 @@ impl DaemonCore {
                 tracing::info!(towers = map.towers.len(), "landmarks replaced");
                 self.pipeline.replace_map(map);
             }
-            Command::FromAutopilot(message) => {
+            Command::FromAutopilot { from, message } => {
                 let Some(link) = self.autopilot.as_mut() else {
                     return;
                 };
-                link.handle_message(now, &message);
+                link.handle_message(now, from, &message);
                 let (MavMessage::GLOBAL_POSITION_INT(_), Some(p)) =
                     (&message, link.autopilot_position())
                 else {

@@ -268,13 +268,16 @@ fn the_autopilot_s_gnss_position_starts_the_pipeline_where_the_uav_is() {
     let msl = place.height_m - towernav_geometry::geoid_height_m(place.lat_deg, place.lon_deg);
     core.handle_command(
         start,
-        Command::FromAutopilot(MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-            lat: (place.lat_deg * 1e7).round() as i32,
-            lon: (place.lon_deg * 1e7).round() as i32,
-            alt: (msl * 1e3).round() as i32,
-            hdg: u16::MAX,
-            ..GLOBAL_POSITION_INT_DATA::DEFAULT
-        })),
+        Command::FromAutopilot {
+            from: (1, 1),
+            message: MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                lat: (place.lat_deg * 1e7).round() as i32,
+                lon: (place.lon_deg * 1e7).round() as i32,
+                alt: (msl * 1e3).round() as i32,
+                hdg: u16::MAX,
+                ..GLOBAL_POSITION_INT_DATA::DEFAULT
+            }),
+        },
     );
     let p = core.pipeline().predicted_position(0.0).expect("hinted");
     assert!((p - Point3::new(200.0, 0.0, 40.0)).norm() < 0.05, "{p}");

@@ -277,6 +277,7 @@ impl MavlinkSection {
     pub fn link_config(&self, accel_sigma: f64) -> LinkConfig {
         let every = |hz: f64| Duration::from_secs_f64(1.0 / hz);
         LinkConfig {
+            system_id: self.system_id,
             position: self.messages.position().map(|m| (m, every(self.rate_hz))),
             odometry_every: self
                 .messages

@@ -18,6 +18,9 @@ pub struct MavlinkError {
 
 type Connection = Arc<dyn MavConnection<MavMessage> + Send + Sync>;
 
+/// A message from the link, with its sender's system and component id.
+pub type Received = ((u8, u8), MavMessage);
+
 pub struct MavlinkOut {
     conn: Connection,
     address: String,
@@ -28,9 +31,7 @@ pub struct MavlinkOut {
 impl MavlinkOut {
     /// Opens the link; the autopilot's messages arrive on the returned channel
     /// (read on a thread of its own, as the connection blocks).
-    pub fn open(
-        config: &MavlinkSection,
-    ) -> Result<(Self, mpsc::Receiver<MavMessage>), MavlinkError> {
+    pub fn open(config: &MavlinkSection) -> Result<(Self, mpsc::Receiver<Received>), MavlinkError> {
         let conn = mavlink::connect::<MavMessage>(&config.address).map_err(|e| MavlinkError {
             address: config.address.clone(),
             reason: e.to_string(),
@@ -77,14 +78,19 @@ impl MavlinkOut {
 /// Forwards the autopilot's messages until the loop stops listening. Bad
 /// frames (CRC, unknown ids) are skipped as the parser resynchronises; a
 /// link that keeps failing is told once, not per frame.
-fn read_loop(conn: Connection, tx: mpsc::Sender<MavMessage>) {
+fn read_loop(conn: Connection, tx: mpsc::Sender<Received>) {
     let mut failures = 0u64;
     loop {
         match conn.recv() {
-            Ok((_, message)) => {
+            Ok((header, message)) => {
                 failures = 0;
+                // MAVLink system ids are one byte on the wire.
+                let from = (
+                    u8::try_from(header.system_id).unwrap_or(0),
+                    header.component_id,
+                );
                 // Full: the loop is behind; dropping an old TIMESYNC is harmless.
-                match tx.try_send(message) {
+                match tx.try_send((from, message)) {
                     Ok(()) | Err(mpsc::error::TrySendError::Full(_)) => {}
                     Err(mpsc::error::TrySendError::Closed(_)) => return,
                 }

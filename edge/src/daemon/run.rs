@@ -11,7 +11,6 @@ use std::time::{Duration, Instant};
 
 use image::RgbImage;
 use image::codecs::jpeg::JpegEncoder;
-use mavlink::dialects::common::MavMessage;
 use towernav_core::daemon::{
     Command, DaemonCore, DetectedFrame, FrameObserver, Output, SourceCounters,
 };
@@ -22,7 +21,7 @@ use towernav_protocol::{IdCorrection, PoseEstimate, Preview, TowerType, TrackRep
 use zenoh::sample::Sample;
 
 use super::config::Pacing;
-use super::mavlink_out::MavlinkOut;
+use super::mavlink_out::{MavlinkOut, Received};
 use super::queue::DropOldest;
 use super::source::{CapturedFrame, FrameSource};
 use super::worker::{Detected, Worker, WorkerTotals};
@@ -41,7 +40,7 @@ pub struct RunOptions {
     /// The autopilot's GNSS positions, one JSON line each.
     pub autopilot_log: Option<std::path::PathBuf>,
     /// The autopilot link, and what the autopilot sends on it.
-    pub mavlink: Option<(MavlinkOut, tokio::sync::mpsc::Receiver<MavMessage>)>,
+    pub mavlink: Option<(MavlinkOut, tokio::sync::mpsc::Receiver<Received>)>,
     pub annotate_dir: Option<std::path::PathBuf>,
     /// The detector's classes, each new landmark set checked against them
     /// (`None`: the oracle, which reports the surveyed types themselves).
@@ -77,7 +76,7 @@ enum Event {
     Frame(Option<Detected>),
     Correction(IdCorrection),
     Landmarks(Option<Sample>),
-    Autopilot(MavMessage),
+    Autopilot(Received),
     Timer,
 }
 
@@ -158,8 +157,8 @@ impl Daemon<'_> {
                     on_frame(seq);
                 }
                 Event::Correction(c) => core.handle_command(Instant::now(), Command::Correct(c)),
-                Event::Autopilot(m) => {
-                    core.handle_command(Instant::now(), Command::FromAutopilot(m))
+                Event::Autopilot((from, message)) => {
+                    core.handle_command(Instant::now(), Command::FromAutopilot { from, message })
                 }
                 Event::Landmarks(change) => {
                     let changed =
@@ -442,9 +441,7 @@ async fn changed_map(
 
 /// The next landmark change, or never when there is no sync.
 /// The autopilot's next message; pending forever without a link, or once it closed.
-async fn next_message(
-    rx: Option<&mut tokio::sync::mpsc::Receiver<MavMessage>>,
-) -> Option<MavMessage> {
+async fn next_message(rx: Option<&mut tokio::sync::mpsc::Receiver<Received>>) -> Option<Received> {
     match rx {
         Some(rx) => match rx.recv().await {
             Some(m) => Some(m),
