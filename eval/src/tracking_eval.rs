@@ -141,7 +141,7 @@ pub fn render_features(
 ) -> Vec<Vec<Vec<f32>>> {
     let half = PinholeCamera {
         intrinsics: scenario.camera.intrinsics.scaled(0.5),
-        mount: scenario.camera.mount,
+        ..scenario.camera
     };
     let renderer = Renderer::new(&scenario.world, half, scenario.seed);
     let mut buffers = renderer.buffers();

@@ -1,12 +1,14 @@
-//! The one home for towernav's geometry: frames and attitude, the pinhole
-//! camera, pixel boxes, WGS84 geodesy and the EGM96 geoid, the index of points within a radius and
+//! The one home for towernav's geometry: frames and attitude, the camera
+//! (pinhole intrinsics, lens distortion, calibration files, mount), pixel boxes, WGS84 geodesy and the EGM96 geoid, the index of points within a radius and
 //! Web Mercator map tiles.
 //!
 //! Conventions (see ARCHITECTURE.md): the world is east-north-up (ENU) about a
 //! geodetic datum, the body is forward-left-up (FLU), the camera is the optical
 //! frame (x right, y down, z forward). Transforms are named `a_from_b`.
 
+pub mod calibration;
 pub mod camera;
+pub mod distortion;
 pub mod frame_camera;
 pub mod frames;
 pub mod geodesy;
@@ -15,7 +17,9 @@ pub mod pixel_box;
 pub mod spatial;
 pub mod web_mercator;
 
+pub use calibration::{Calibration, CalibrationError};
 pub use camera::{CameraMount, Intrinsics, PinholeCamera, RayGrid};
+pub use distortion::Distortion;
 pub use frame_camera::{FrameCamera, Projected};
 pub use frames::{Attitude, Pose, wrap_angle};
 pub use geodesy::{Datum, Geodetic};

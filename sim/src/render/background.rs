@@ -23,10 +23,7 @@ pub fn draw(
     clouds: &CloudSheet,
 ) {
     let (w, h) = (k.width as usize, k.height as usize);
-    let half_camera = PinholeCamera {
-        intrinsics: k.scaled(0.5),
-        mount: CameraMount::default(),
-    };
+    let half_camera = PinholeCamera::pinhole(k.scaled(0.5), CameraMount::default());
     let (hw, hh) = (
         half_camera.intrinsics.width as usize,
         half_camera.intrinsics.height as usize,
