@@ -1,8 +1,14 @@
 //! One frame in, one pose and a set of bound tracks out: tracker -> identity -> localizer.
+//!
+//! A real lens is undone at the door: each detector box is mapped into the
+//! ideal camera's image (its top, foot and sides undistorted), so the
+//! tracker, identity and localizers work in pinhole geometry, and tracks go
+//! back out on the real image. Positions inside are the camera's centre;
+//! what goes out is the body's, the mount's lever arm taken off.
 
-use nalgebra::Point3;
-use towernav_geometry::{PinholeCamera, PixelBox, Pose};
-use towernav_protocol::{DetectionFrame, TowerType};
+use nalgebra::{Point3, Vector3};
+use towernav_geometry::{Attitude, PinholeCamera, PixelBox, Pose, UndistortedView};
+use towernav_protocol::{Detection, DetectionFrame, TowerType};
 
 use crate::filter::{Estimate, FilterParams, FixVerdict, PoseFilter};
 use crate::identity::{Identity, IdentityParams, View};
@@ -81,6 +87,10 @@ pub struct FrameOutput {
 
 pub struct Pipeline {
     config: PipelineConfig,
+    /// The configured camera and the ideal one that every stage after the
+    /// door sees.
+    view: UndistortedView,
+    ideal: PinholeCamera,
     map: LandmarkMap,
     tracker: SortTracker,
     identity: Identity,
@@ -94,7 +104,10 @@ pub struct Pipeline {
 
 impl Pipeline {
     pub fn new(config: PipelineConfig, map: LandmarkMap) -> Self {
+        let view = UndistortedView::new(&config.camera);
         Self {
+            view,
+            ideal: view.ideal,
             tracker: SortTracker::new(config.sort),
             identity: Identity::new(config.identity),
             filter: config.filter.map(PoseFilter::new),
@@ -144,6 +157,17 @@ impl Pipeline {
             .as_ref()
             .and_then(|f| f.predicted_position(time_s))
             .or(self.last_known)
+            .map(|p| p - self.lever_arm_in_world(self.prev_attitude.as_ref()))
+    }
+
+    /// The camera's centre from the body's origin, in the world, at `attitude`
+    /// (none yet: level, facing east; the lever arm is centimetres).
+    fn lever_arm_in_world(&self, attitude: Option<&Attitude>) -> Vector3<f64> {
+        let lever = self.config.camera.mount.lever_arm();
+        match attitude {
+            Some(a) => a.world_from_body() * lever,
+            None => lever,
+        }
     }
 
     /// Where another source (the autopilot's GNSS, while it is good) puts
@@ -156,7 +180,8 @@ impl Pipeline {
             .and_then(|f| f.predicted_position(time_s))
             .is_some();
         if !tracking {
-            self.last_known = Some(point_in_world);
+            self.last_known =
+                Some(point_in_world + self.lever_arm_in_world(self.prev_attitude.as_ref()));
         }
     }
 
@@ -171,7 +196,18 @@ impl Pipeline {
         frame: &DetectionFrame,
         tamper: impl FnOnce(&mut Vec<BoundBox>),
     ) -> FrameOutput {
-        let predicted = self.predicted_position(frame.time_s);
+        let undistorted;
+        let frame = if self.config.camera.distortion.is_none() {
+            frame
+        } else {
+            undistorted = self.undistort(frame);
+            &undistorted
+        };
+        let predicted = self
+            .filter
+            .as_ref()
+            .and_then(|f| f.predicted_position(frame.time_s))
+            .or(self.last_known);
         let (tracks, bindings) = self.track_and_bind(frame, predicted);
         let mut bound: Vec<BoundBox> = tracks
             .iter()
@@ -186,9 +222,17 @@ impl Pipeline {
             .collect();
         tamper(&mut bound);
         let (fix, paper_fix) = self.localize(frame, &bound, predicted);
-        let (estimate, verdict) = self.filter_step(frame, fix.as_ref());
+        let (mut estimate, verdict) = self.filter_step(frame, fix.as_ref());
         if let Some(e) = &estimate {
             self.last_known = Some(e.position_in_world);
+        }
+        let lever = self.lever_arm_in_world(Some(&frame.imu_attitude));
+        let (mut fix, mut paper_fix) = (fix, paper_fix);
+        for f in fix.iter_mut().chain(paper_fix.iter_mut()) {
+            f.position_in_world -= lever;
+        }
+        if let Some(e) = &mut estimate {
+            e.position_in_world -= lever;
         }
         let tracks = tracks
             .into_iter()
@@ -197,7 +241,7 @@ impl Pipeline {
                 pinned: self.identity.is_pinned(t.track_id),
                 confidence: tower.and_then(|_| self.identity.confidence(t.track_id)),
                 track_id: t.track_id,
-                bbox: t.bbox,
+                bbox: self.view.to_real(&t.bbox),
                 tower_type: t.tower_type,
                 tower,
             })
@@ -213,6 +257,27 @@ impl Pipeline {
         }
     }
 
+    /// The frame with its boxes in the ideal camera's image
+    /// ([`UndistortedView::to_ideal`]). A box the lens model cannot map is
+    /// dropped; the edge refuses a lens it cannot invert over the whole image.
+    fn undistort(&self, frame: &DetectionFrame) -> DetectionFrame {
+        let detections = frame
+            .detections
+            .iter()
+            .filter_map(|d| {
+                let Some(bbox) = self.view.to_ideal(&d.bbox) else {
+                    tracing::debug!(bbox = ?d.bbox, "a box outside the lens model's field is dropped");
+                    return None;
+                };
+                Some(Detection { bbox, ..d.clone() })
+            })
+            .collect();
+        DetectionFrame {
+            detections,
+            ..frame.clone()
+        }
+    }
+
     /// The tracker's step, then each track bound to a tower (or not) about
     /// the predicted position, or the take-off before the first fix.
     fn track_and_bind(
@@ -222,7 +287,7 @@ impl Pipeline {
     ) -> (Vec<TrackOutput>, Vec<Option<usize>>) {
         let motion = self
             .prev_attitude
-            .map(|before| CameraMotion::between(&self.config.camera, &before, &frame.imu_attitude));
+            .map(|before| CameraMotion::between(&self.ideal, &before, &frame.imu_attitude));
         self.prev_attitude = Some(frame.imu_attitude);
         let tracks = self.tracker.step(&TrackerInput {
             time_s: frame.time_s,
@@ -242,7 +307,7 @@ impl Pipeline {
         let view = View {
             guess: &guess,
             trusted,
-            camera: &self.config.camera,
+            camera: &self.ideal,
             map: &self.map,
         };
         let bindings = self.identity.update(&tracks, &live, view, || {
@@ -274,7 +339,7 @@ impl Pipeline {
         let paper = || {
             paper_lbl(
                 &observations,
-                &self.config.camera.intrinsics,
+                &self.ideal.intrinsics,
                 frame.imu_attitude.yaw,
                 params,
             )
@@ -283,7 +348,7 @@ impl Pipeline {
             Method::Paper => paper(),
             Method::Rays => robust_lbl(
                 &observations,
-                &self.config.camera,
+                &self.ideal,
                 &frame.imu_attitude,
                 predicted,
                 params,

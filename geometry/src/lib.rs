@@ -15,6 +15,7 @@ pub mod geodesy;
 pub mod geoid;
 pub mod pixel_box;
 pub mod spatial;
+pub mod undistorted_view;
 pub mod web_mercator;
 
 pub use calibration::{Calibration, CalibrationError};
@@ -26,3 +27,4 @@ pub use geodesy::{Datum, Geodetic};
 pub use geoid::{GeoidCache, geoid_height_m, msl_from_ellipsoid_m};
 pub use pixel_box::PixelBox;
 pub use spatial::GeoIndex;
+pub use undistorted_view::UndistortedView;

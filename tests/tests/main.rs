@@ -8,6 +8,7 @@ mod ground_station_net;
 mod invariants;
 mod landmark_import;
 mod landmark_sync;
+mod lens;
 mod localization;
 mod onnx_reid;
 mod pipeline;
