@@ -16,7 +16,7 @@ use towernav_core::localizer::Method;
 use towernav_core::pipeline::{Pipeline, PipelineConfig};
 use towernav_core::wire::pose_method;
 use towernav_core::{LandmarkMap, TypeMatch, match_types};
-use towernav_geometry::{Datum, Geodetic, Intrinsics, PinholeCamera};
+use towernav_geometry::{Datum, Geodetic, PinholeCamera};
 use towernav_onnx::{DetectorOptions, YoloDetector};
 use towernav_protocol::session::Endpoints;
 use towernav_protocol::{LandmarkRecord, NodeId, TowerType};
@@ -240,14 +240,9 @@ fn frame_of(
     match (sim, config.pipeline.takeoff) {
         (Some(s), _) => Ok((s.camera(), s.datum(), s.takeoff_in_world())),
         (None, Some([lat, lon, alt])) => Ok((
-            PinholeCamera {
-                intrinsics: Intrinsics::from_hfov(
-                    config.source.width,
-                    config.source.height,
-                    config.camera.hfov_deg,
-                ),
-                ..PinholeCamera::default_hd()
-            },
+            config
+                .camera
+                .camera(config.source.width, config.source.height)?,
             Datum::new(Geodetic::new(lat, lon, alt)?),
             Point3::origin(),
         )),

@@ -188,6 +188,26 @@ impl PinholeCamera {
         Some(self.pixel_of_normalized(p))
     }
 
+    /// A pixel of the image where the lens model cannot be inverted (or
+    /// does not come back to itself), on a grid over the whole image with
+    /// its border: such a calibration is wrong, or was fitted on a smaller
+    /// part of the image than the frames show.
+    pub fn uninvertible_pixel(&self) -> Option<Point2<f64>> {
+        if self.distortion.is_none() {
+            return None;
+        }
+        let k = &self.intrinsics;
+        let (w, h) = (f64::from(k.width), f64::from(k.height));
+        const STEPS: usize = 32;
+        (0..=STEPS)
+            .flat_map(|i| (0..=STEPS).map(move |j| (i, j)))
+            .map(|(i, j)| Point2::new(w * i as f64 / STEPS as f64, h * j as f64 / STEPS as f64))
+            .find(|p| {
+                self.undistort_pixel(p)
+                    .is_none_or(|q| (self.distort_pixel(&q) - p).norm() > 1e-6)
+            })
+    }
+
     /// Where a pixel of the ideal camera's image lands in the real one.
     pub fn distort_pixel(&self, ideal: &Point2<f64>) -> Point2<f64> {
         if self.distortion.is_none() {

@@ -136,13 +136,88 @@ impl SourceSection {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CameraSection {
-    /// Horizontal field of view, degrees (square pixels, centred principal point).
+    /// Horizontal field of view, degrees (square pixels, centred principal
+    /// point, no distortion); used when there is no calibration.
     pub hfov_deg: f64,
+    /// A calibration file: OpenCV's (YAML or JSON), ROS `camera_info` YAML
+    /// or a Kalibr camchain. Its image size must be the frames' (`source.width`, `source.height`).
+    pub calibration: Option<PathBuf>,
+    /// How the camera sits on the body.
+    pub mount: MountSection,
 }
 
 impl Default for CameraSection {
     fn default() -> Self {
-        Self { hfov_deg: 70.0 }
+        Self {
+            hfov_deg: 70.0,
+            calibration: None,
+            mount: MountSection::default(),
+        }
+    }
+}
+
+/// The camera's mount on the body (forward-left-up), as measured on the
+/// airframe: angles turn a camera that looks along the nose, `yaw_deg` to
+/// the left, `pitch_deg` up, `roll_deg` right side down; the lever arm is
+/// the lens's centre from the autopilot's reference point, metres.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MountSection {
+    pub roll_deg: f64,
+    pub pitch_deg: f64,
+    pub yaw_deg: f64,
+    pub lever_arm_m: [f64; 3],
+}
+
+impl MountSection {
+    pub fn mount(&self) -> towernav_geometry::CameraMount {
+        towernav_geometry::CameraMount {
+            roll: self.roll_deg.to_radians(),
+            pitch: self.pitch_deg.to_radians(),
+            yaw: self.yaw_deg.to_radians(),
+            lever_arm_m: self.lever_arm_m,
+        }
+    }
+}
+
+impl CameraSection {
+    /// The camera of a real source whose frames are `width` x `height`: the
+    /// calibration file's, or a pinhole from `hfov_deg`; with the mount.
+    pub fn camera(
+        &self,
+        width: u32,
+        height: u32,
+    ) -> Result<towernav_geometry::PinholeCamera, ConfigError> {
+        use towernav_geometry::{Calibration, Intrinsics, PinholeCamera};
+        let mount = self.mount.mount();
+        let Some(path) = &self.calibration else {
+            return Ok(PinholeCamera::pinhole(
+                Intrinsics::from_hfov(width, height, self.hfov_deg),
+                mount,
+            ));
+        };
+        let bad = |reason: String| ConfigError::File {
+            path: path.clone(),
+            reason,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+        let calibration = Calibration::parse(&text).map_err(|e| bad(e.to_string()))?;
+        calibration
+            .check_size(width, height)
+            .map_err(|e| bad(e.to_string()))?;
+        let camera = PinholeCamera {
+            intrinsics: calibration.intrinsics,
+            mount,
+            distortion: calibration.distortion,
+        };
+        if let Some(p) = camera.uninvertible_pixel() {
+            return Err(bad(format!(
+                "its lens model cannot be inverted at pixel ({:.0}, {:.0}): the coefficients \
+                 fold the image there (a calibration fitted on the centre only?)",
+                p.x, p.y
+            )));
+        }
+        Ok(camera)
     }
 }
 
@@ -577,6 +652,23 @@ impl EdgeConfig {
                 format!("{} is not in (5, 170)", self.camera.hfov_deg),
             );
         }
+        let m = &self.camera.mount;
+        if ![m.roll_deg, m.pitch_deg, m.yaw_deg]
+            .iter()
+            .all(|a| a.abs() <= 180.0)
+            || !m
+                .lever_arm_m
+                .iter()
+                .all(|x| x.is_finite() && x.abs() < 10.0)
+        {
+            return invalid(
+                "camera.mount",
+                "angles are degrees within +-180 and the lever arm metres within +-10".into(),
+            );
+        }
+        if s.kind != SourceKind::Sim {
+            self.camera.camera(s.width, s.height)?;
+        }
         match self.pipeline.takeoff {
             None if s.kind != SourceKind::Sim => {
                 return invalid(
@@ -704,6 +796,56 @@ mod tests {
         assert_eq!(source("[source]\nspeed = 0\n").pacing(), Pacing::EveryFrame);
         let rtsp = "[source]\nkind = \"rtsp\"\npath = \"rtsp://cam\"\n";
         assert_eq!(source(rtsp).pacing(), Pacing::Live);
+    }
+
+    #[test]
+    fn a_calibration_file_gives_the_lens_and_a_wrong_one_says_why() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join("camera.yaml");
+        let ros = |k1: f64| {
+            format!(
+                "image_width: 1280\nimage_height: 720\ncamera_name: nose\n\
+                 camera_matrix:\n  rows: 3\n  cols: 3\n  data: [900, 0, 640, 0, 900, 360, 0, 0, 1]\n\
+                 distortion_model: plumb_bob\n\
+                 distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [{k1}, 0.08, 0, 0, 0]\n"
+            )
+        };
+        let config = |width: u32| {
+            EdgeConfig::parse(&format!(
+                "[source]\nkind = \"images\"\npath = \"f\"\nwidth = {width}\nheight = 720\n\
+                 [attitude]\nkind = \"csv\"\npath = \"a.csv\"\n\
+                 [pipeline]\ntakeoff = [30.5, 114.3, 20.0]\n\
+                 [camera]\ncalibration = {:?}\n[camera.mount]\npitch_deg = -10\nlever_arm_m = [0.1, 0, -0.05]\n",
+                file.display().to_string()
+            ))
+            .expect("parses")
+        };
+        std::fs::write(&file, ros(-0.28)).expect("write");
+        let good = config(1280);
+        good.validate().expect("valid");
+        let camera = good.camera.camera(1280, 720).expect("camera");
+        assert!(matches!(
+            camera.distortion,
+            towernav_geometry::Distortion::RadialTangential { k1, .. } if k1 == -0.28
+        ));
+        assert!((camera.mount.pitch.to_degrees() + 10.0).abs() < 1e-12);
+        assert_eq!(camera.mount.lever_arm_m, [0.1, 0.0, -0.05]);
+
+        let err = config(1920).validate().expect_err("size").to_string();
+        assert!(
+            err.contains("camera.yaml") && err.contains("1280x720") && err.contains("1920x720"),
+            "{err}"
+        );
+        // A strong positive k2 against k1 folds the image's corners back.
+        std::fs::write(&file, ros(-1.5).replace("0.08,", "0.9,")).expect("write");
+        let err = config(1280).validate().expect_err("folds").to_string();
+        assert!(err.contains("cannot be inverted at pixel"), "{err}");
+        std::fs::write(&file, "image_width: 1280\n").expect("write");
+        let err = config(1280).validate().expect_err("no camera").to_string();
+        assert!(
+            err.contains("camera.yaml") && err.contains("no camera found"),
+            "{err}"
+        );
     }
 
     #[test]
