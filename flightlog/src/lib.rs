@@ -1,0 +1,123 @@
+//! What a flight log says about the UAV: its attitude and, where present,
+//! its GNSS fixes, on the autopilot's clock (seconds since boot), from
+//! ArduPilot DataFlash (`.bin`), MAVLink telemetry logs (`.tlog`), PX4 ULog
+//! (`.ulg`) and the project's CSV. Attitude between samples is slerped.
+//!
+//! Readers take bytes; [`FlightLog::read`] is the one place that opens a file.
+
+mod csv_log;
+mod dataflash;
+mod error;
+mod samples;
+mod tlog;
+mod ulog;
+
+use std::path::Path;
+
+pub use error::LogError;
+pub use samples::{AttitudeSample, GnssSample};
+
+use towernav_geometry::Attitude;
+
+/// The formats, told apart by the file's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogFormat {
+    DataFlash,
+    Tlog,
+    Ulog,
+    Csv,
+}
+
+impl LogFormat {
+    pub fn of(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        Some(match ext.as_str() {
+            "bin" => Self::DataFlash,
+            "tlog" => Self::Tlog,
+            "ulg" => Self::Ulog,
+            "csv" => Self::Csv,
+            _ => return None,
+        })
+    }
+}
+
+/// A flight's attitude and GNSS, each sorted by time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlightLog {
+    pub attitude: Vec<AttitudeSample>,
+    pub gnss: Vec<GnssSample>,
+}
+
+impl FlightLog {
+    /// Reads `path` in the format its extension names. A log without
+    /// attitude is refused: it cannot place a single frame.
+    pub fn read(path: &Path) -> Result<Self, LogError> {
+        let bad = |reason: String| LogError::new(path, reason);
+        let format = LogFormat::of(path).ok_or_else(|| {
+            bad(
+                "the extension is not one of .bin (ArduPilot), .tlog (MAVLink), .ulg (PX4), .csv"
+                    .into(),
+            )
+        })?;
+        let bytes = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
+        Self::parse(format, &bytes).map_err(|e| e.in_file(path))
+    }
+
+    pub fn parse(format: LogFormat, bytes: &[u8]) -> Result<Self, LogError> {
+        let mut log = match format {
+            LogFormat::DataFlash => dataflash::parse(bytes)?,
+            LogFormat::Tlog => tlog::parse(bytes)?,
+            LogFormat::Ulog => ulog::parse(bytes)?,
+            LogFormat::Csv => csv_log::parse(bytes)?,
+        };
+        samples::tidy(&mut log.attitude, |s| s.time_s);
+        samples::tidy(&mut log.gnss, |s| s.time_s);
+        if log.attitude.is_empty() {
+            return Err(LogError::bare(format!(
+                "no attitude in it (looked for {})",
+                match format {
+                    LogFormat::DataFlash => "ATT",
+                    LogFormat::Tlog => "ATTITUDE",
+                    LogFormat::Ulog => "vehicle_attitude",
+                    LogFormat::Csv => "rows of time_s,roll_deg,pitch_deg,heading_deg",
+                }
+            )));
+        }
+        Ok(log)
+    }
+
+    /// The span of the attitude samples, seconds on the log's clock.
+    pub fn span(&self) -> (f64, f64) {
+        let first = self.attitude.first().map_or(0.0, |s| s.time_s);
+        let last = self.attitude.last().map_or(0.0, |s| s.time_s);
+        (first, last)
+    }
+
+    /// Attitude at `time_s`, slerped between the samples around it; `None`
+    /// outside the log.
+    pub fn attitude_at(&self, time_s: f64) -> Option<Attitude> {
+        samples::slerp_at(&self.attitude, time_s)
+    }
+
+    /// Refuses frames from `first_s` to `last_s` (log clock) that the log
+    /// does not cover, saying by how much.
+    pub fn check_covers(&self, first_s: f64, last_s: f64) -> Result<(), LogError> {
+        let (start, end) = self.span();
+        if first_s < start {
+            return Err(LogError::bare(format!(
+                "the frames start {:.3} s before the log's attitude does ({first_s:.3} s against {start:.3} s on the log's clock): check the camera-to-log time offset",
+                start - first_s
+            )));
+        }
+        if last_s > end {
+            return Err(LogError::bare(format!(
+                "the frames go on {:.3} s after the log's attitude ends ({last_s:.3} s against {end:.3} s on the log's clock): check the camera-to-log time offset",
+                last_s - end
+            )));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod real_logs_tests;

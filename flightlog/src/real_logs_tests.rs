@@ -1,0 +1,220 @@
+//! The readers on logs that real autopilots wrote (the sibling
+//! `shared/logs/` folder, read in place), against what pymavlink's
+//! `DFReader` 2.4.50 and pyulog 1.3.0 read from the same files. Where the
+//! folder is absent, each test says so and passes.
+
+use std::path::PathBuf;
+
+use crate::FlightLog;
+
+fn shared_log(name: &str) -> Option<PathBuf> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/logs")
+        .join(name);
+    if path.is_file() {
+        Some(path)
+    } else {
+        eprintln!("skipped: no {} here", path.display());
+        None
+    }
+}
+
+fn close(a: f64, b: f64, tolerance: f64) -> bool {
+    (a - b).abs() <= tolerance
+}
+
+/// `DFReader_binary(f).recv_match(type=['ATT','GPS'])`: ATT messages at
+/// distinct times (`copter_83.bin` logs 743 of its 4721 twice in the same
+/// millisecond; the first is kept), the first, middle and last of those
+/// (TimeMS s, Roll, Pitch, Yaw deg), fixes with Status >= 3, and the first
+/// and last fix's (Lat, Lng, Alt).
+#[test]
+fn ardupilot_dataflash_logs_read_as_pymavlink_reads_them() {
+    type Att = (f64, f64, f64, f64);
+    type Fix = (f64, f64, f64);
+    const CASES: [(&str, usize, [Att; 3], usize, [Fix; 2]); 3] = [
+        (
+            "ardupilot/copter_loiter_rtl.bin",
+            2356,
+            [
+                (20.664, 0.27, 0.58, 0.58),
+                (160.89, 4.71, 3.45, 73.92),
+                (278.59, -0.29, -0.46, 56.15),
+            ],
+            990,
+            [
+                (42.845769, -2.6885322, 521.31),
+                (42.8457736, -2.6884622, 517.81),
+            ],
+        ),
+        (
+            "ardupilot/copter_83.bin",
+            3978,
+            [
+                (8.869, 0.3, 0.55, 182.11),
+                (88.245, -5.98, 0.86, 10.27),
+                (127.627, -0.13, -0.65, 138.66),
+            ],
+            377,
+            [
+                (42.8458017, -2.6885744, 521.08),
+                (42.8457814, -2.6885222, 520.28),
+            ],
+        ),
+        (
+            "ardupilot/plane_329.bin",
+            6145,
+            [
+                (9.739, 0.25, 1.16, 271.81),
+                (316.939, 28.12, -6.52, 223.18),
+                (624.139, 1.34, -5.52, 280.09),
+            ],
+            3290,
+            [
+                (42.8539031, -2.6451317, 510.53),
+                (42.8539051, -2.6451872, 513.96),
+            ],
+        ),
+    ];
+    for (name, att_count, atts, fix_count, fixes) in CASES {
+        let Some(path) = shared_log(name) else {
+            continue;
+        };
+        let log = FlightLog::read(&path).expect(name);
+        assert_eq!(log.attitude.len(), att_count, "{name}");
+        for (sample, (t, roll, pitch, yaw)) in [0, att_count / 2, att_count - 1]
+            .map(|i| log.attitude[i])
+            .iter()
+            .zip(atts)
+        {
+            let a = sample.attitude;
+            let heading = a.yaw_from_north().to_degrees().rem_euclid(360.0);
+            assert!(
+                close(sample.time_s, t, 1e-6)
+                    && close(a.roll.to_degrees(), roll, 1e-9)
+                    && close(a.pitch.to_degrees(), pitch, 1e-9)
+                    && close(heading, yaw, 1e-9),
+                "{name}: {sample:?} against ({t}, {roll}, {pitch}, {yaw})"
+            );
+        }
+        assert_eq!(log.gnss.len(), fix_count, "{name}");
+        for (g, (lat, lon, alt)) in [log.gnss[0], log.gnss[fix_count - 1]].iter().zip(fixes) {
+            assert!(
+                close(g.lat_deg, lat, 1e-9)
+                    && close(g.lon_deg, lon, 1e-9)
+                    && close(g.alt_msl_m, alt, 1e-9),
+                "{name}: {g:?} against ({lat}, {lon}, {alt})"
+            );
+        }
+        // Fixes sit on the boot clock, inside the attitude's span.
+        let (start, end) = log.span();
+        assert!(
+            log.gnss
+                .iter()
+                .all(|g| g.time_s >= start - 1.0 && g.time_s <= end + 1.0),
+            "{name}"
+        );
+    }
+}
+
+/// pyulog: `vehicle_attitude` (multi_id 0) sample count, first and last
+/// timestamp, and the middle sample's quaternion as roll, pitch and
+/// heading (degrees, ZYX); `vehicle_gps_position` fixes (fix_type >= 3)
+/// and the first one's lat, lon (1e-7 deg) and alt (mm).
+#[test]
+fn px4_ulogs_read_as_pyulog_reads_them() {
+    const CASES: [(&str, usize, [u64; 3], [f64; 3]); 2] = [
+        (
+            "px4/sample.ulg",
+            6461,
+            [112574307, 146991907, 181488706],
+            [2.6770614221811395, 6.837444299474463, -34.988784524736054],
+        ),
+        (
+            "px4/sample_log_small.ulg",
+            1298,
+            [20326716, 23655443, 26822868],
+            [1.0846526574960869, -0.08512362506412176, 4.831758649099613],
+        ),
+    ];
+    for (name, count, [first, mid, last], [roll, pitch, heading]) in CASES {
+        let Some(path) = shared_log(name) else {
+            continue;
+        };
+        let log = FlightLog::read(&path).expect(name);
+        assert_eq!(log.attitude.len(), count, "{name}");
+        let t = |i: usize| log.attitude[i].time_s;
+        assert!(close(t(0), first as f64 / 1e6, 1e-9), "{name}");
+        assert!(close(t(count / 2), mid as f64 / 1e6, 1e-9), "{name}");
+        assert!(close(t(count - 1), last as f64 / 1e6, 1e-9), "{name}");
+        let a = log.attitude[count / 2].attitude;
+        // The log's quaternion is f32: agreement to 1e-4 degrees.
+        assert!(
+            close(a.roll.to_degrees(), roll, 1e-4)
+                && close(a.pitch.to_degrees(), pitch, 1e-4)
+                && close(a.yaw_from_north().to_degrees(), heading, 1e-4),
+            "{name}: {a:?}"
+        );
+    }
+    if let Some(path) = shared_log("px4/sample_log_small.ulg") {
+        let log = FlightLog::read(&path).expect("small");
+        assert_eq!(log.gnss.len(), 32);
+        let g = log.gnss[0];
+        assert!(close(g.time_s, 20.471648, 1e-9));
+        assert!(close(g.lat_deg, 63.4170622, 1e-9) && close(g.lon_deg, 10.4082151, 1e-9));
+        assert!(close(g.alt_msl_m, 66.814, 1e-9));
+    }
+    if let Some(path) = shared_log("px4/sample.ulg") {
+        assert!(
+            FlightLog::read(&path).expect("sample").gnss.is_empty(),
+            "no global position in it"
+        );
+    }
+}
+
+#[test]
+fn cut_and_foreign_logs_are_refused_naming_the_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "junk.bin",
+            b"hello world".to_vec(),
+            "not an ArduPilot .bin log",
+        ),
+        ("junk.ulg", b"hello world".to_vec(), "not a ULog file"),
+        ("junk.tlog", vec![0; 20], "no MAVLink frame"),
+        (
+            "empty.csv",
+            b"time_s,roll_deg,pitch_deg,heading_deg\n".to_vec(),
+            "no attitude",
+        ),
+        ("flight.txt", b"x".to_vec(), "extension"),
+    ];
+    for (name, bytes, expected) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).expect("write");
+        let err = FlightLog::read(&path).expect_err(name).to_string();
+        assert!(err.contains(name) && err.contains(expected), "{err}");
+    }
+    // A real log cut in the middle of a message reads up to the cut; cut
+    // inside its header, nothing is left to read.
+    if let Some(path) = shared_log("px4/sample_log_small.ulg") {
+        let bytes = std::fs::read(&path).expect("read");
+        let cut = dir.path().join("cut.ulg");
+        std::fs::write(&cut, &bytes[..bytes.len() / 2]).expect("write");
+        match FlightLog::read(&cut) {
+            Ok(log) => assert!(log.attitude.len() < 1298),
+            Err(e) => assert!(e.to_string().contains("cut.ulg"), "{e}"),
+        }
+        std::fs::write(&cut, &bytes[..10]).expect("write");
+        let err = FlightLog::read(&cut).expect_err("header only").to_string();
+        assert!(err.contains("cut.ulg"), "{err}");
+    }
+    if let Some(path) = shared_log("ardupilot/copter_83.bin") {
+        let bytes = std::fs::read(&path).expect("read");
+        let cut = dir.path().join("cut.bin");
+        std::fs::write(&cut, &bytes[..bytes.len() / 3]).expect("write");
+        let log = FlightLog::read(&cut).expect("a cut log reads up to the cut");
+        assert!(log.attitude.len() < 3978 && log.attitude.len() > 1000);
+    }
+}

@@ -1,0 +1,114 @@
+//! Time-stamped samples, and attitude between them.
+
+use nalgebra::UnitQuaternion;
+use towernav_geometry::Attitude;
+
+/// The body's attitude at a time on the log's clock.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeSample {
+    pub time_s: f64,
+    pub attitude: Attitude,
+}
+
+/// A GNSS fix at a time on the log's clock.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GnssSample {
+    pub time_s: f64,
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    /// Above mean sea level, as receivers and autopilots log it.
+    pub alt_msl_m: f64,
+}
+
+/// Sorts by time and keeps one sample per time (the first): logs repeat
+/// and reorder messages around reboots of the logger.
+pub(crate) fn tidy<T>(samples: &mut Vec<T>, time: impl Fn(&T) -> f64) {
+    samples.sort_by(|a, b| time(a).total_cmp(&time(b)));
+    samples.dedup_by(|b, a| time(a) == time(b));
+}
+
+/// The attitude at `time_s` by spherical interpolation of the body's
+/// rotation (right through yaw's wrap and steep banks); `None` outside.
+pub(crate) fn slerp_at(samples: &[AttitudeSample], time_s: f64) -> Option<Attitude> {
+    let i = samples.partition_point(|s| s.time_s < time_s);
+    let after = samples.get(i)?;
+    if after.time_s == time_s {
+        return Some(after.attitude);
+    }
+    let before = samples.get(i.checked_sub(1)?)?;
+    let f = (time_s - before.time_s) / (after.time_s - before.time_s);
+    let (q0, q1) = (
+        before.attitude.world_from_body(),
+        after.attitude.world_from_body(),
+    );
+    let q = q0.try_slerp(&q1, f, 1e-12).unwrap_or(q0);
+    Some(attitude_of(&q))
+}
+
+/// Roll, pitch and yaw of `world_from_body = Rz(yaw) Ry(-pitch) Rx(roll)`.
+pub(crate) fn attitude_of(q: &UnitQuaternion<f64>) -> Attitude {
+    // nalgebra's euler_angles are (roll, pitch', yaw) of Rz Ry(pitch') Rx.
+    let (roll, pitch, yaw) = q.euler_angles();
+    Attitude {
+        roll,
+        pitch: -pitch,
+        yaw,
+    }
+}
+
+/// An autopilot's FRD-to-NED quaternion `(w, x, y, z)` as our attitude.
+pub(crate) fn attitude_of_ned_quaternion(w: f64, x: f64, y: f64, z: f64) -> Option<Attitude> {
+    let q = nalgebra::Quaternion::new(w, x, y, z);
+    if !(q.norm() > 0.5 && q.norm() < 1.5) {
+        return None;
+    }
+    let (roll, pitch, yaw) = UnitQuaternion::from_quaternion(q).euler_angles();
+    Some(Attitude::from_ned(roll, pitch, yaw))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use towernav_geometry::wrap_angle;
+
+    fn at(time_s: f64, roll: f64, pitch: f64, yaw: f64) -> AttitudeSample {
+        AttitudeSample {
+            time_s,
+            attitude: Attitude { roll, pitch, yaw },
+        }
+    }
+
+    #[test]
+    fn slerp_takes_yaw_the_short_way_and_stops_at_the_ends() {
+        let d = |x: f64| x.to_radians();
+        let samples = [at(0.0, 0.0, 0.0, d(170.0)), at(1.0, 0.0, 0.0, d(-170.0))];
+        let mid = slerp_at(&samples, 0.5).expect("inside");
+        assert!(
+            (wrap_angle(mid.yaw) - std::f64::consts::PI).abs() < 1e-9,
+            "{mid:?}"
+        );
+        assert!(slerp_at(&samples, -0.01).is_none());
+        assert!(slerp_at(&samples, 1.01).is_none());
+        assert_eq!(slerp_at(&samples, 1.0), Some(samples[1].attitude));
+    }
+
+    #[test]
+    fn a_ned_quaternion_reads_as_its_euler_angles() {
+        // Heading 90 (east), 10 degrees nose up: q = Rz(90) Ry(10) in NED.
+        let q = UnitQuaternion::from_euler_angles(0.0, 10f64.to_radians(), 90f64.to_radians());
+        let a = attitude_of_ned_quaternion(q.w, q.i, q.j, q.k).expect("unit");
+        assert!(a.yaw.abs() < 1e-12 && (a.pitch - 10f64.to_radians()).abs() < 1e-12);
+        assert!(attitude_of_ned_quaternion(0.0, 0.0, 0.0, 0.0).is_none());
+    }
+
+    proptest! {
+        #[test]
+        fn euler_angles_round_trip(roll in -1.4f64..1.4, pitch in -1.4f64..1.4, yaw in -3.1f64..3.1) {
+            let a = Attitude { roll, pitch, yaw };
+            let back = attitude_of(&a.world_from_body());
+            prop_assert!((back.roll - roll).abs() < 1e-9 && (back.pitch - pitch).abs() < 1e-9);
+            prop_assert!(wrap_angle(back.yaw - yaw).abs() < 1e-9);
+        }
+    }
+}
