@@ -32,7 +32,8 @@ fn close(a: f64, b: f64, tolerance: f64) -> bool {
 fn ardupilot_dataflash_logs_read_as_pymavlink_reads_them() {
     type Att = (f64, f64, f64, f64);
     type Fix = (f64, f64, f64);
-    const CASES: [(&str, usize, [Att; 3], usize, [Fix; 2]); 3] = [
+    type Case = (&'static str, usize, [Att; 3], usize, [Fix; 2]);
+    const CASES: [Case; 3] = [
         (
             "ardupilot/copter_loiter_rtl.bin",
             2356,

@@ -4,6 +4,7 @@ mod autopilot_link;
 mod detector;
 mod edge_daemon;
 mod fleet;
+mod flight_logs;
 mod ground_station_net;
 mod invariants;
 mod landmark_import;
