@@ -27,7 +27,7 @@ pub use crate::demo::Sim;
 #[cfg(not(feature = "demo"))]
 pub use crate::no_sim::Sim;
 
-use crate::daemon::attitude::{AttitudeLog, AttitudeSource, MavlinkAttitude};
+use crate::daemon::attitude::{AttitudeSource, MavlinkAttitude};
 use crate::daemon::config::{
     AttitudeKind, AttitudeSection, DetectorKind, DetectorSection, EdgeConfig, SourceKind,
 };
@@ -356,9 +356,23 @@ fn open_source(config: &EdgeConfig) -> anyhow::Result<Box<dyn FrameSource>> {
 fn open_attitude(section: &AttitudeSection) -> anyhow::Result<AttitudeSource> {
     Ok(match section.kind {
         AttitudeKind::Source => AttitudeSource::Frames,
-        AttitudeKind::Csv => AttitudeSource::Log(AttitudeLog::read(
-            section.path.as_deref().unwrap_or(Path::new("")),
-        )?),
+        AttitudeKind::Log | AttitudeKind::Csv => {
+            let path = section.path.as_deref().unwrap_or(Path::new(""));
+            let log = towernav_flightlog::FlightLog::read(path)?;
+            let (start, end) = log.span();
+            tracing::info!(
+                path = %path.display(),
+                start_s = start,
+                end_s = end,
+                fixes = log.gnss.len(),
+                offset_s = section.time_offset_s,
+                "attitude from a flight log"
+            );
+            AttitudeSource::Log {
+                log,
+                offset_s: section.time_offset_s,
+            }
+        }
         AttitudeKind::Mavlink => {
             AttitudeSource::Mavlink(MavlinkAttitude::listen(&section.address)?)
         }

@@ -56,3 +56,27 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
     }
     Ok(FlightLog { attitude, gnss })
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::{FlightLog, LogFormat};
+
+    #[test]
+    fn a_bad_line_is_named() {
+        let parse = |text: &str| FlightLog::parse(LogFormat::Csv, text.as_bytes());
+        let err = parse("time_s,roll_deg,pitch_deg,heading_deg\n0,0,0,0\n0,1,1,1\n")
+            .expect_err("time repeats")
+            .to_string();
+        assert!(
+            err.contains("line 3") && err.contains("does not increase"),
+            "{err}"
+        );
+        let err = parse("time_s,roll_deg,pitch_deg,heading_deg\n0,x,0,0\n")
+            .expect_err("not a number")
+            .to_string();
+        assert!(err.contains("line 2"), "{err}");
+        let log = parse("time_s,roll_deg,pitch_deg,heading_deg,lat_deg,lon_deg,alt_msl_m\n0,0,0,0,47.1,8.5,500\n")
+            .expect("with GNSS");
+        assert_eq!(log.gnss.len(), 1);
+    }
+}

@@ -1,108 +1,21 @@
 //! Where each frame's attitude comes from: the frame source (the simulator's
-//! IMU), a CSV log, or the autopilot's MAVLink ATTITUDE messages.
+//! IMU), a flight log (ArduPilot `.bin`, MAVLink `.tlog`, PX4 `.ulg`, CSV)
+//! on the camera's clock plus an offset, or the autopilot's MAVLink
+//! ATTITUDE messages.
 
-use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::MavConnection;
 use mavlink::dialects::common::MavMessage;
-use towernav_geometry::{Attitude, wrap_angle};
+use towernav_geometry::Attitude;
 
 #[derive(Debug, thiserror::Error)]
 pub enum AttitudeError {
-    #[error("attitude log {path}, line {line}: {reason}")]
-    Log {
-        path: PathBuf,
-        line: u64,
-        reason: String,
-    },
-    #[error("attitude log {path}: {reason}")]
-    LogFile { path: PathBuf, reason: String },
+    #[error(transparent)]
+    Log(#[from] towernav_flightlog::LogError),
     #[error("MAVLink attitude input {address}: {reason}")]
     Mavlink { address: String, reason: String },
-}
-
-/// A CSV attitude log: `time_s,roll_deg,pitch_deg,heading_deg` (heading
-/// clockwise from north, as autopilots log it), sorted by time.
-#[derive(Debug, Clone, PartialEq)]
-pub struct AttitudeLog {
-    samples: Vec<(f64, Attitude)>,
-}
-
-#[derive(serde::Deserialize)]
-struct Row {
-    time_s: f64,
-    roll_deg: f64,
-    pitch_deg: f64,
-    heading_deg: f64,
-}
-
-impl AttitudeLog {
-    pub fn read(path: &Path) -> Result<Self, AttitudeError> {
-        let file = std::fs::File::open(path).map_err(|e| AttitudeError::LogFile {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        let mut samples: Vec<(f64, Attitude)> = Vec::new();
-        for (i, row) in csv::Reader::from_reader(file)
-            .deserialize::<Row>()
-            .enumerate()
-        {
-            let line = i as u64 + 2;
-            let bad = |reason: String| AttitudeError::Log {
-                path: path.to_path_buf(),
-                line,
-                reason,
-            };
-            let r = row.map_err(|e| bad(e.to_string()))?;
-            if ![r.time_s, r.roll_deg, r.pitch_deg, r.heading_deg]
-                .iter()
-                .all(|v| v.is_finite())
-            {
-                return Err(bad("a value is not a finite number".into()));
-            }
-            if samples.last().is_some_and(|(t, _)| r.time_s <= *t) {
-                return Err(bad(format!("time {} does not increase", r.time_s)));
-            }
-            samples.push((
-                r.time_s,
-                Attitude::from_ned(
-                    r.roll_deg.to_radians(),
-                    r.pitch_deg.to_radians(),
-                    r.heading_deg.to_radians(),
-                ),
-            ));
-        }
-        if samples.is_empty() {
-            return Err(AttitudeError::LogFile {
-                path: path.to_path_buf(),
-                reason: "it has no rows (header: time_s,roll_deg,pitch_deg,heading_deg)".into(),
-            });
-        }
-        Ok(Self { samples })
-    }
-
-    /// Attitude at `time_s`, interpolated (yaw the short way round); `None`
-    /// outside the log.
-    pub fn at(&self, time_s: f64) -> Option<Attitude> {
-        let i = self.samples.partition_point(|(t, _)| *t < time_s);
-        match (
-            i.checked_sub(1).map(|j| self.samples[j]),
-            self.samples.get(i),
-        ) {
-            (_, Some((t, a))) if *t == time_s => Some(*a),
-            (Some((t0, a0)), Some((t1, a1))) => {
-                let f = (time_s - t0) / (t1 - t0);
-                Some(Attitude {
-                    roll: a0.roll + f * (a1.roll - a0.roll),
-                    pitch: a0.pitch + f * (a1.pitch - a0.pitch),
-                    yaw: wrap_angle(a0.yaw + f * wrap_angle(a1.yaw - a0.yaw)),
-                })
-            }
-            _ => None,
-        }
-    }
 }
 
 /// The latest ATTITUDE an autopilot sent, read on a thread of its own.
@@ -164,7 +77,12 @@ impl MavlinkAttitude {
 pub enum AttitudeSource {
     /// The frame source stamps each frame (the simulator).
     Frames,
-    Log(AttitudeLog),
+    /// A flight log; a frame at camera time `t` takes the log's attitude
+    /// at `t + offset_s`.
+    Log {
+        log: towernav_flightlog::FlightLog,
+        offset_s: f64,
+    },
     Mavlink(MavlinkAttitude),
 }
 
@@ -173,7 +91,7 @@ impl AttitudeSource {
     pub fn attitude(&self, time_s: f64, from_frame: Option<Attitude>) -> Option<Attitude> {
         match self {
             Self::Frames => from_frame,
-            Self::Log(log) => log.at(time_s),
+            Self::Log { log, offset_s } => log.attitude_at(time_s + offset_s),
             Self::Mavlink(m) => m.latest(Duration::from_millis(500)),
         }
     }
@@ -184,45 +102,22 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_log_interpolates_and_converts_heading() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("att.csv");
-        std::fs::write(
-            &path,
-            "time_s,roll_deg,pitch_deg,heading_deg\n0,0,0,350\n1,10,-4,10\n",
+    fn a_log_on_the_camera_s_clock_is_shifted_by_the_offset() {
+        let log = towernav_flightlog::FlightLog::parse(
+            towernav_flightlog::LogFormat::Csv,
+            b"time_s,roll_deg,pitch_deg,heading_deg\n100,0,0,350\n101,10,-4,10\n",
         )
-        .expect("write");
-        let log = AttitudeLog::read(&path).expect("reads");
-        let mid = log.at(0.5).expect("inside");
-        assert!((mid.roll.to_degrees() - 5.0).abs() < 1e-9);
-        assert!((mid.pitch.to_degrees() + 2.0).abs() < 1e-9);
+        .expect("parses");
+        let source = AttitudeSource::Log {
+            log,
+            offset_s: 100.0,
+        };
+        let mid = source.attitude(0.5, None).expect("inside");
+        assert!((mid.roll.to_degrees() - 5.0).abs() < 1e-6, "{mid:?}");
         assert!(
             mid.yaw_from_north().abs() < 1e-9,
             "350 to 10 passes through north"
         );
-        assert!(log.at(1.5).is_none());
-    }
-
-    #[test]
-    fn a_bad_log_line_is_named() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("att.csv");
-        std::fs::write(
-            &path,
-            "time_s,roll_deg,pitch_deg,heading_deg\n0,0,0,0\n0,1,1,1\n",
-        )
-        .expect("write");
-        let err = AttitudeLog::read(&path)
-            .expect_err("time repeats")
-            .to_string();
-        assert!(
-            err.contains("line 3") && err.contains("does not increase"),
-            "{err}"
-        );
-        std::fs::write(&path, "time_s,roll_deg,pitch_deg,heading_deg\n0,x,0,0\n").expect("write");
-        let err = AttitudeLog::read(&path)
-            .expect_err("not a number")
-            .to_string();
-        assert!(err.contains("line 2"), "{err}");
+        assert!(source.attitude(1.5, None).is_none());
     }
 }

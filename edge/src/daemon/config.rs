@@ -226,7 +226,10 @@ impl CameraSection {
 pub enum AttitudeKind {
     /// From the frame source (the simulator's IMU).
     Source,
-    /// A CSV log: time_s,roll_deg,pitch_deg,heading_deg.
+    /// A flight log: ArduPilot `.bin`, MAVLink `.tlog`, PX4 `.ulg`, or a
+    /// CSV of time_s,roll_deg,pitch_deg,heading_deg; told apart by extension.
+    Log,
+    /// The same as `log` (the name from when only CSV was read).
     Csv,
     /// The autopilot's MAVLink ATTITUDE messages.
     Mavlink,
@@ -236,8 +239,12 @@ pub enum AttitudeKind {
 #[serde(deny_unknown_fields, default)]
 pub struct AttitudeSection {
     pub kind: AttitudeKind,
-    /// The CSV log, for `csv`.
+    /// The flight log, for `log`.
     pub path: Option<PathBuf>,
+    /// Camera-to-log clock offset, seconds: a frame at camera time `t` takes
+    /// the log's attitude at `t + time_offset_s` (the log's clock is the
+    /// autopilot's time since boot).
+    pub time_offset_s: f64,
     /// Where to listen for ATTITUDE, for `mavlink` (e.g. `udpin:127.0.0.1:14551`).
     pub address: String,
 }
@@ -432,6 +439,7 @@ impl Default for AttitudeSection {
         Self {
             kind: AttitudeKind::Source,
             path: None,
+            time_offset_s: 0.0,
             address: "udpin:127.0.0.1:14551".into(),
         }
     }
@@ -637,12 +645,15 @@ impl EdgeConfig {
             AttitudeKind::Source if s.kind != SourceKind::Sim => {
                 return invalid(
                     "attitude.kind",
-                    "only the simulator stamps frames with attitude; use \"csv\" or \"mavlink\""
+                    "only the simulator stamps frames with attitude; use \"log\" or \"mavlink\""
                         .into(),
                 );
             }
-            AttitudeKind::Csv if self.attitude.path.is_none() => {
-                return invalid("attitude.path", "a csv attitude input needs a path".into());
+            AttitudeKind::Log | AttitudeKind::Csv if self.attitude.path.is_none() => {
+                return invalid(
+                    "attitude.path",
+                    "a flight log attitude input needs a path".into(),
+                );
             }
             _ => {}
         }
@@ -665,6 +676,9 @@ impl EdgeConfig {
                 "camera.mount",
                 "angles are degrees within +-180 and the lever arm metres within +-10".into(),
             );
+        }
+        if !self.attitude.time_offset_s.is_finite() {
+            return invalid("attitude.time_offset_s", "is not a finite number".into());
         }
         if s.kind != SourceKind::Sim {
             self.camera.camera(s.width, s.height)?;
