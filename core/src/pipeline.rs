@@ -90,7 +90,6 @@ pub struct Pipeline {
     /// The configured camera and the ideal one that every stage after the
     /// door sees.
     view: UndistortedView,
-    ideal: PinholeCamera,
     map: LandmarkMap,
     tracker: SortTracker,
     identity: Identity,
@@ -107,7 +106,6 @@ impl Pipeline {
         let view = UndistortedView::new(&config.camera);
         Self {
             view,
-            ideal: view.ideal,
             tracker: SortTracker::new(config.sort),
             identity: Identity::new(config.identity),
             filter: config.filter.map(PoseFilter::new),
@@ -287,7 +285,7 @@ impl Pipeline {
     ) -> (Vec<TrackOutput>, Vec<Option<usize>>) {
         let motion = self
             .prev_attitude
-            .map(|before| CameraMotion::between(&self.ideal, &before, &frame.imu_attitude));
+            .map(|before| CameraMotion::between(&self.view.ideal, &before, &frame.imu_attitude));
         self.prev_attitude = Some(frame.imu_attitude);
         let tracks = self.tracker.step(&TrackerInput {
             time_s: frame.time_s,
@@ -307,7 +305,7 @@ impl Pipeline {
         let view = View {
             guess: &guess,
             trusted,
-            camera: &self.ideal,
+            camera: &self.view.ideal,
             map: &self.map,
         };
         let bindings = self.identity.update(&tracks, &live, view, || {
@@ -339,7 +337,7 @@ impl Pipeline {
         let paper = || {
             paper_lbl(
                 &observations,
-                &self.ideal.intrinsics,
+                &self.view.ideal.intrinsics,
                 frame.imu_attitude.yaw,
                 params,
             )
@@ -348,7 +346,7 @@ impl Pipeline {
             Method::Paper => paper(),
             Method::Rays => robust_lbl(
                 &observations,
-                &self.ideal,
+                &self.view.ideal,
                 &frame.imu_attitude,
                 predicted,
                 params,

@@ -37,6 +37,23 @@ pub fn loopback_port() -> u16 {
     panic!("no free loopback port in {base}..{}", base + BLOCK);
 }
 
+/// pymavlink, from the Python package index (`cargo xtask test` installs it
+/// and says where in `TOWERNAV_PYTHONPATH`); `None` where it is missing and
+/// nobody asked for it.
+pub fn pymavlink() -> Option<std::ffi::OsString> {
+    let path = std::env::var_os("TOWERNAV_PYTHONPATH");
+    let found = std::process::Command::new("python3")
+        .args(["-c", "import pymavlink"])
+        .env("PYTHONPATH", path.clone().unwrap_or_default())
+        .status()
+        .is_ok_and(|s| s.success());
+    match (found, path) {
+        (true, path) => Some(path.unwrap_or_default()),
+        (false, Some(path)) => panic!("pymavlink is not importable from {path:?}"),
+        (false, None) => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -18,23 +18,6 @@ fn free_udp_port() -> u16 {
     towernav_tests::loopback_port()
 }
 
-/// pymavlink, from the Python package index (`cargo xtask test` installs it
-/// and says where in `TOWERNAV_PYTHONPATH`); `None` where it is missing and
-/// nobody asked for it.
-fn pymavlink() -> Option<std::ffi::OsString> {
-    let path = std::env::var_os("TOWERNAV_PYTHONPATH");
-    let found = std::process::Command::new("python3")
-        .args(["-c", "import pymavlink"])
-        .env("PYTHONPATH", path.clone().unwrap_or_default())
-        .status()
-        .is_ok_and(|s| s.success());
-    match (found, path) {
-        (true, path) => Some(path.unwrap_or_default()),
-        (false, Some(path)) => panic!("pymavlink is not importable from {path:?}"),
-        (false, None) => None,
-    }
-}
-
 /// What pymavlink decoded: each message with its header and arrival time.
 #[derive(serde::Deserialize)]
 struct Heard {
@@ -223,7 +206,7 @@ fn leave_and_return(port: u16, jsonl: std::path::PathBuf) -> EdgeConfig {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn pymavlink_decodes_an_honest_link_through_a_flight_that_leaves_the_towers()
 -> anyhow::Result<()> {
-    let Some(pythonpath) = pymavlink() else {
+    let Some(pythonpath) = towernav_tests::pymavlink() else {
         eprintln!("skipped: pymavlink is not installed (cargo xtask test installs it)");
         return Ok(());
     };

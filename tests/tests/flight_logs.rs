@@ -4,24 +4,9 @@
 
 use towernav_flightlog::FlightLog;
 
-/// pymavlink's path, as `autopilot_link.rs` finds it.
-fn pymavlink() -> Option<std::ffi::OsString> {
-    let path = std::env::var_os("TOWERNAV_PYTHONPATH");
-    let found = std::process::Command::new("python3")
-        .args(["-c", "import pymavlink"])
-        .env("PYTHONPATH", path.clone().unwrap_or_default())
-        .status()
-        .is_ok_and(|s| s.success());
-    match (found, path) {
-        (true, path) => Some(path.unwrap_or_default()),
-        (false, Some(path)) => panic!("pymavlink is not importable from {path:?}"),
-        (false, None) => None,
-    }
-}
-
 #[test]
 fn a_tlog_written_by_pymavlink_reads_the_vehicle_s_attitude_and_fixes() {
-    let Some(pythonpath) = pymavlink() else {
+    let Some(pythonpath) = towernav_tests::pymavlink() else {
         eprintln!("skipped: no pymavlink (cargo xtask test installs it)");
         return;
     };
