@@ -5,6 +5,7 @@
 //! Pure: no I/O, no clocks, no global state. Same seed, same frames.
 
 pub mod flight;
+pub mod gnss;
 pub mod landmark_world;
 pub mod oracle;
 pub mod quadrotor;

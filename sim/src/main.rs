@@ -6,6 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
+use cli::flight_cmd::FlightOutputs;
+use towernav_sim::gnss::GnssParams;
 use towernav_sim::replay::{ReplaySource, ReplayWorld};
 use towernav_sim::waypoints::FlightPlan;
 use towernav_sim::{Conditions, Renderer, Scenario, World};
@@ -108,6 +110,16 @@ enum Command {
         /// Also render every frame into mot/<plan>/img1/.
         #[arg(long)]
         images: bool,
+        /// Also render every frame into flight.mp4 (H.264, through ffmpeg).
+        #[arg(long)]
+        video: bool,
+        /// See through this lens: an OpenCV, ROS camera_info or Kalibr
+        /// calibration file (its intrinsics, distortion and image size).
+        #[arg(long)]
+        calibration: Option<PathBuf>,
+        /// One-sigma horizontal GNSS error of flight.tlog's positions, metres.
+        #[arg(long, default_value_t = 1.5)]
+        gnss_sigma_m: f64,
         #[arg(long, value_enum, default_value = "default")]
         weather: Weather,
         #[arg(long)]
@@ -202,9 +214,28 @@ fn main() -> anyhow::Result<()> {
             plan,
             seed,
             images,
+            video,
+            calibration,
+            gnss_sigma_m,
             weather,
             out,
-        } => fly(&world, &plan, seed, images, weather, &out)?,
+        } => {
+            anyhow::ensure!(
+                gnss_sigma_m.is_finite() && gnss_sigma_m >= 0.0,
+                "--gnss-sigma-m must be 0 or more, got {gnss_sigma_m}"
+            );
+            let outputs = FlightOutputs {
+                images,
+                video,
+                calibration: calibration.as_deref(),
+                gnss: GnssParams {
+                    horizontal_sigma_m: gnss_sigma_m,
+                    vertical_sigma_m: 2.0 * gnss_sigma_m,
+                    ..GnssParams::default()
+                },
+            };
+            fly(&world, &plan, seed, &outputs, weather, &out)?
+        }
         Command::Render {
             world,
             plan,
@@ -256,12 +287,28 @@ fn fly(
     world: &WorldArg,
     plan: &PlanArg,
     seed: u64,
-    images: bool,
+    outputs: &FlightOutputs<'_>,
     weather: Weather,
     out: &std::path::Path,
 ) -> anyhow::Result<()> {
     let flight_plan = plan.plan()?;
-    let scenario = Scenario::flying(world.world()?, &flight_plan, seed);
+    let mut scenario = Scenario::flying(world.world()?, &flight_plan, seed);
+    if let Some(path) = outputs.calibration {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading calibration {}", path.display()))?;
+        let calibration = towernav_geometry::Calibration::parse(&text)
+            .with_context(|| format!("calibration {}", path.display()))?;
+        scenario.camera.intrinsics = calibration.intrinsics;
+        scenario.camera.distortion = calibration.distortion;
+        if let Some(p) = scenario.camera.uninvertible_pixel() {
+            anyhow::bail!(
+                "calibration {}: its lens folds the image at pixel ({:.0}, {:.0})",
+                path.display(),
+                p.x,
+                p.y
+            );
+        }
+    }
     tracing::info!(plan = %flight_plan.name, frames = scenario.frame_count(), duration_s = scenario.flight.duration_s(), "flying");
     let replay = ReplaySource::Oracle {
         world: match (&world.world, world.random_world) {
@@ -277,7 +324,7 @@ fn fly(
         &scenario,
         &flight_plan.name,
         out,
-        images,
+        outputs,
         &conditions(weather, seed),
         &replay,
     )?;

@@ -25,6 +25,8 @@ pub enum ReplaySource {
     Camera {
         images: PathBuf,
         attitude_log: PathBuf,
+        /// The lens's calibration file; none: an ideal pinhole by field of view.
+        calibration: Option<PathBuf>,
     },
 }
 
@@ -49,13 +51,20 @@ impl ReplaySource {
             Self::Camera {
                 images,
                 attitude_log,
+                calibration,
             } => {
                 let takeoff = scenario.world.datum.to_geodetic(&scenario.start_in_world());
                 let k = &scenario.camera.intrinsics;
-                let hfov_deg = (2.0 * (f64::from(k.width) / (2.0 * k.fx)).atan()).to_degrees();
+                let camera = match calibration {
+                    Some(path) => format!("calibration = {:?}", path.display().to_string()),
+                    None => format!(
+                        "hfov_deg = {:.4}",
+                        (2.0 * (f64::from(k.width) / (2.0 * k.fx)).atan()).to_degrees()
+                    ),
+                };
                 format!(
                     "[source]\nkind = \"images\"\npath = {img:?}\nfps = {fps}\nwidth = {w}\nheight = {h}\n\n\
-                     [camera]\nhfov_deg = {hfov_deg:.4}\n\n\
+                     [camera]\n{camera}\n\n\
                      [attitude]\nkind = \"csv\"\npath = {att:?}\n\n\
                      [pipeline]\ntakeoff = [{lat:.9}, {lon:.9}, {alt:.3}]\n",
                     img = images.display().to_string(),

@@ -145,6 +145,7 @@ fn a_camera_replay_processes_every_frame_unless_told_to_pace() -> anyhow::Result
     let replay = ReplaySource::Camera {
         images: "/flight/mot/straight/img1".into(),
         attitude_log: "/flight/attitude.csv".into(),
+        calibration: None,
     };
     let text = replay.config_toml(
         &scenario,

@@ -10,6 +10,9 @@ use towernav_sim::replay::ReplaySource;
 use towernav_sim::{Conditions, FrameTruth, Renderer, Scenario};
 
 use crate::cli::mot;
+use crate::cli::tlog::{LogRow, TlogWriter};
+use crate::cli::video::VideoWriter;
+use towernav_sim::gnss::GnssParams;
 
 pub fn progress(len: u64, what: &str) -> ProgressBar {
     let bar = ProgressBar::new(len);
@@ -22,8 +25,22 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
+/// What `towernav-sim flight` writes beside its CSV files.
+pub struct FlightOutputs<'a> {
+    /// Every frame to `mot/<name>/img1/*.jpg`; the replay reads them as a camera.
+    pub images: bool,
+    /// Every frame to `flight.mp4` (H.264), as a UAV's camera records.
+    pub video: bool,
+    /// The calibration file the camera was built from, copied beside the
+    /// flight for its replay.
+    pub calibration: Option<&'a Path>,
+    /// The GNSS error of `flight.tlog`'s positions.
+    pub gnss: GnssParams,
+}
+
 /// Write `trajectory.csv`, `truth.csv`, `mot/<name>/`, `attitude.csv` (the
-/// IMU as an autopilot logs it), `towers.csv` and `replay.toml`
+/// IMU as an autopilot logs it), `flight.tlog` (the same attitude and noisy
+/// GNSS on the autopilot's clock), `towers.csv` and `replay.toml`
 /// (`towernav-edge run --config replay.toml`). With `images`, every frame goes
 /// to `mot/<name>/img1/*.jpg` and the replay reads them as a real camera;
 /// without, it flies the same simulated flight with the oracle detector.
@@ -31,10 +48,11 @@ pub fn write_flight(
     scenario: &Scenario,
     name: &str,
     out: &Path,
-    images: bool,
+    outputs: &FlightOutputs<'_>,
     conditions: &Conditions,
     replay: &ReplaySource,
 ) -> anyhow::Result<()> {
+    let images = outputs.images;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut traj = csv_file(&out.join("trajectory.csv"))?;
     let mut truth_csv = csv_file(&out.join("truth.csv"))?;
@@ -69,8 +87,20 @@ pub fn write_flight(
         std::fs::create_dir_all(&img_dir)
             .with_context(|| format!("creating {}", img_dir.display()))?;
     }
-    let renderer = images.then(|| Renderer::new(&scenario.world, scenario.camera, scenario.seed));
+    let k = scenario.camera.intrinsics;
+    let renderer = (images || outputs.video)
+        .then(|| Renderer::new(&scenario.world, scenario.camera, scenario.seed));
     let mut buffers = renderer.as_ref().map(Renderer::buffers);
+    let mut video = outputs
+        .video
+        .then(|| VideoWriter::create(&out.join("flight.mp4"), k.width, k.height, scenario.fps))
+        .transpose()?;
+    let mut tlog = TlogWriter::create(
+        &out.join("flight.tlog"),
+        scenario.world.datum,
+        outputs.gnss,
+        scenario.seed,
+    )?;
     let attitude_path = out.join("attitude.csv");
     let mut attitude_csv = csv_file(&attitude_path)?;
     attitude_csv.write_record(["time_s", "roll_deg", "pitch_deg", "heading_deg"])?;
@@ -85,14 +115,24 @@ pub fn write_flight(
             &mut attitude_csv,
             &mut truth_csv,
         )?;
+        tlog.write(&LogRow {
+            time_s: truth.time_s,
+            attitude: input.imu_attitude,
+            position_in_world: p.position_in_world,
+        })?;
         if let (Some(renderer), Some(buffers)) = (&renderer, &mut buffers) {
             let rates = scenario.flight.attitude_rates(truth.time_s);
             renderer.render_into(buffers, p, conditions, rates, scenario.seed ^ truth.seq);
-            let path = img_dir.join(format!("{:06}.jpg", truth.seq + 1));
-            buffers
-                .image
-                .save(&path)
-                .with_context(|| format!("writing {}", path.display()))?;
+            if images {
+                let path = img_dir.join(format!("{:06}.jpg", truth.seq + 1));
+                buffers
+                    .image
+                    .save(&path)
+                    .with_context(|| format!("writing {}", path.display()))?;
+            }
+            if let Some(video) = &mut video {
+                video.push(&buffers.image)?;
+            }
         }
         truths.push(truth);
         bar.inc(1);
@@ -101,14 +141,22 @@ pub fn write_flight(
     traj.flush()?;
     truth_csv.flush()?;
     attitude_csv.flush()?;
+    tlog.finish()?;
+    if let Some(video) = video {
+        video.finish()?;
+    }
     let towers = write_towers(scenario, out)?;
+    let calibration = outputs
+        .calibration
+        .map(|from| copy_calibration(from, out))
+        .transpose()?;
     let camera = ReplaySource::Camera {
         images: absolute(&img_dir),
         attitude_log: absolute(&attitude_path),
+        calibration,
     };
     let source = if images { &camera } else { replay };
     write_replay_config(scenario, out, &towers, source)?;
-    let k = &scenario.camera.intrinsics;
     mot::write_sequence(
         &seq_dir,
         name,
@@ -117,6 +165,15 @@ pub fn write_flight(
         scenario.fps,
         (k.width, k.height),
     )
+}
+
+/// The camera's calibration file beside the flight, as `camera.<ext>`.
+fn copy_calibration(from: &Path, out: &Path) -> anyhow::Result<std::path::PathBuf> {
+    let ext = from.extension().and_then(|e| e.to_str()).unwrap_or("yaml");
+    let to = out.join(format!("camera.{ext}"));
+    std::fs::copy(from, &to)
+        .with_context(|| format!("copying {} to {}", from.display(), to.display()))?;
+    Ok(absolute(&to))
 }
 
 /// The world's towers as the landmark file the replay localizes against.

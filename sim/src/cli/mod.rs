@@ -6,3 +6,5 @@ pub mod flight_cmd;
 pub mod mot;
 pub mod overlay;
 pub mod photos;
+pub mod tlog;
+pub mod video;

@@ -9,6 +9,7 @@ mod background;
 mod clutter;
 pub mod conditions;
 pub mod lens;
+mod lens_warp;
 mod post;
 mod scene;
 mod textures;
@@ -18,13 +19,18 @@ use tiny_skia::Pixmap;
 use towernav_geometry::{PinholeCamera, Pose};
 
 pub use conditions::{Conditions, TowerPaint};
+pub use lens_warp::LensWarp;
 use scene::{Scene, Span, TowerGeometry};
 
 use crate::world::{Distractor, World};
 
 /// Holds what does not change between frames: geometry in world coordinates and textures.
 pub struct Renderer {
+    /// The ideal pinhole the scene is drawn through (the lens's canvas when
+    /// `warp` bends it into `camera`).
+    canvas: PinholeCamera,
     camera: PinholeCamera,
+    warp: Option<LensWarp>,
     towers: Vec<TowerGeometry>,
     spans: Vec<Span>,
     distractors: Vec<Distractor>,
@@ -46,13 +52,20 @@ pub struct FrameBuffers {
     pixmap: Pixmap,
     scratch: Vec<u8>,
     half: Vec<u8>,
+    /// The ideal canvas before a lens bends it.
+    canvas: RgbImage,
     pub image: RgbImage,
 }
 
 impl Renderer {
+    /// A renderer for `camera`, its lens included: a distorted camera's frames
+    /// are drawn ideal and then bent (`LensWarp`).
     pub fn new(world: &World, camera: PinholeCamera, texture_seed: u64) -> Self {
+        let warp = LensWarp::new(&camera);
         Self {
+            canvas: warp.as_ref().map_or(camera, |w| *w.canvas()),
             camera,
+            warp,
             towers: scene::tower_geometry(world),
             spans: scene::spans(world),
             distractors: world.distractors.clone(),
@@ -62,12 +75,14 @@ impl Renderer {
         }
     }
 
+    /// The camera the frames are seen through, lens included.
     pub fn camera(&self) -> &PinholeCamera {
         &self.camera
     }
 
     pub fn buffers(&self) -> FrameBuffers {
-        let k = &self.camera.intrinsics;
+        let k = &self.canvas.intrinsics;
+        let out = &self.camera.intrinsics;
         FrameBuffers {
             pixmap: Pixmap::new(k.width.max(1), k.height.max(1)).unwrap_or_else(|| {
                 // Width and height are at least 1, so this cannot fail; keep a 1x1 fallback anyway.
@@ -75,7 +90,11 @@ impl Renderer {
             }),
             scratch: Vec::new(),
             half: Vec::new(),
-            image: RgbImage::new(k.width.max(1), k.height.max(1)),
+            canvas: match self.warp {
+                Some(_) => RgbImage::new(k.width.max(1), k.height.max(1)),
+                None => RgbImage::new(0, 0),
+            },
+            image: RgbImage::new(out.width.max(1), out.height.max(1)),
         }
     }
 
@@ -103,8 +122,8 @@ impl Renderer {
         noise_seed: u64,
         backdrop: Option<Backdrop<'_>>,
     ) {
-        let k = &self.camera.intrinsics;
-        let world_from_camera = self.camera.world_from_camera(pose);
+        let k = &self.canvas.intrinsics;
+        let world_from_camera = self.canvas.world_from_camera(pose);
         background::draw(
             buffers.pixmap.data_mut(),
             &mut buffers.half,
@@ -117,14 +136,14 @@ impl Renderer {
         if let Some(backdrop) = backdrop {
             background::paste(
                 buffers.pixmap.data_mut(),
-                &self.camera,
+                &self.canvas,
                 &world_from_camera,
                 conditions,
                 &backdrop,
             );
         }
         let scene = Scene {
-            camera: &self.camera,
+            camera: &self.canvas,
             camera_from_world: world_from_camera.inverse(),
             conditions,
         };
@@ -145,14 +164,21 @@ impl Renderer {
             k.width as usize,
             blur,
         );
+        let developed = match self.warp {
+            Some(_) => &mut buffers.canvas,
+            None => &mut buffers.image,
+        };
         post::develop(
             buffers.pixmap.data(),
-            &mut buffers.image,
+            developed,
             conditions.exposure,
             conditions.noise_sigma,
             &self.noise,
             noise_seed,
         );
+        if let Some(warp) = &self.warp {
+            warp.apply(&buffers.canvas, &mut buffers.image);
+        }
     }
 
     /// Render one frame into a new image.
