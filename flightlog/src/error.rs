@@ -20,7 +20,8 @@ impl LogError {
         Self { path: None, reason }
     }
 
-    pub(crate) fn in_file(self, path: &Path) -> Self {
+    /// The same error, said of the file at `path`.
+    pub fn in_file(self, path: &Path) -> Self {
         Self {
             path: Some(path.to_path_buf()),
             ..self

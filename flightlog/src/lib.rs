@@ -103,13 +103,14 @@ impl FlightLog {
     /// does not cover, saying by how much.
     pub fn check_covers(&self, first_s: f64, last_s: f64) -> Result<(), LogError> {
         let (start, end) = self.span();
-        if first_s < start {
+        let slack = samples::END_TOLERANCE_S;
+        if first_s < start - slack {
             return Err(LogError::bare(format!(
                 "the frames start {:.3} s before the log's attitude does ({first_s:.3} s against {start:.3} s on the log's clock): check the camera-to-log time offset",
                 start - first_s
             )));
         }
-        if last_s > end {
+        if last_s > end + slack {
             return Err(LogError::bare(format!(
                 "the frames go on {:.3} s after the log's attitude ends ({last_s:.3} s against {end:.3} s on the log's clock): check the camera-to-log time offset",
                 last_s - end

@@ -27,9 +27,21 @@ pub(crate) fn tidy<T>(samples: &mut Vec<T>, time: impl Fn(&T) -> f64) {
     samples.dedup_by(|b, a| time(a) == time(b));
 }
 
+/// Logs stamp to the millisecond: a frame within this of the first or last
+/// sample takes that sample, rather than falling outside by a rounding.
+pub const END_TOLERANCE_S: f64 = 1e-3;
+
 /// The attitude at `time_s` by spherical interpolation of the body's
-/// rotation (right through yaw's wrap and steep banks); `None` outside.
+/// rotation (right through yaw's wrap and steep banks); `None` outside
+/// (beyond [`END_TOLERANCE_S`]).
 pub(crate) fn slerp_at(samples: &[AttitudeSample], time_s: f64) -> Option<Attitude> {
+    let (first, last) = (samples.first()?, samples.last()?);
+    if time_s < first.time_s {
+        return (first.time_s - time_s <= END_TOLERANCE_S).then_some(first.attitude);
+    }
+    if time_s > last.time_s {
+        return (time_s - last.time_s <= END_TOLERANCE_S).then_some(last.attitude);
+    }
     let i = samples.partition_point(|s| s.time_s < time_s);
     let after = samples.get(i)?;
     if after.time_s == time_s {

@@ -5,6 +5,7 @@
 
 use std::process::Command;
 
+use towernav_edge::daemon::frame_times::FrameTimes;
 use towernav_edge::daemon::source::{FfmpegSource, FrameSource};
 
 fn ffmpeg() -> anyhow::Result<()> {
@@ -48,7 +49,15 @@ fn a_video_file_decodes_to_scaled_timestamped_frames() -> anyhow::Result<()> {
         .status()?;
     anyhow::ensure!(status.success(), "encoding the clip failed");
 
-    let mut source = FfmpegSource::open(&clip.display().to_string(), 640, 360, 10.0)?;
+    // Its own timestamps, not the nominal rate given (30 Hz), time the frames.
+    let mut source = FfmpegSource::open(
+        &clip.display().to_string(),
+        640,
+        360,
+        30.0,
+        &FrameTimes::Pts,
+    )?;
+    assert_eq!(source.span_s(), Some((0.0, 0.4)));
     let mut frames = Vec::new();
     while let Some(frame) = source.next_frame() {
         frames.push(frame?);
@@ -77,7 +86,7 @@ fn a_video_file_decodes_to_scaled_timestamped_frames() -> anyhow::Result<()> {
 #[test]
 fn a_missing_or_broken_video_is_an_error_naming_it() -> anyhow::Result<()> {
     ffmpeg()?;
-    let err = FfmpegSource::open("/nonexistent/flight.mp4", 640, 360, 30.0)
+    let err = FfmpegSource::open("/nonexistent/flight.mp4", 640, 360, 30.0, &FrameTimes::Pts)
         .err()
         .expect("missing file");
     assert!(err.to_string().contains("/nonexistent/flight.mp4"), "{err}");
@@ -85,7 +94,23 @@ fn a_missing_or_broken_video_is_an_error_naming_it() -> anyhow::Result<()> {
     let dir = tempfile::tempdir()?;
     let junk = dir.path().join("junk.mp4");
     std::fs::write(&junk, b"this is not a video")?;
-    let mut source = FfmpegSource::open(&junk.display().to_string(), 640, 360, 30.0)?;
+    let err = FfmpegSource::open(
+        &junk.display().to_string(),
+        640,
+        360,
+        30.0,
+        &FrameTimes::Pts,
+    )
+    .err()
+    .expect("no timestamps to read");
+    assert!(err.to_string().contains("junk.mp4"), "{err}");
+    let mut source = FfmpegSource::open(
+        &junk.display().to_string(),
+        640,
+        360,
+        30.0,
+        &FrameTimes::Rate,
+    )?;
     match source.next_frame() {
         Some(Err(e)) => assert!(e.to_string().contains("junk.mp4"), "{e}"),
         other => panic!(

@@ -8,6 +8,8 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use towernav_core::autopilot_link::{LinkConfig, PositionMessage};
 
+use super::frame_times::FrameTimes;
+
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     #[error("config {path}: {reason}")]
@@ -73,8 +75,17 @@ pub struct SourceSection {
     pub kind: SourceKind,
     /// Folder, file, URL or device, for every kind but `sim`.
     pub path: Option<String>,
-    /// Frame rate of an image folder or video file (their clock).
+    /// Frame rate of an image folder or video file: their clock when
+    /// `timestamps` is `rate`.
     pub fps: f64,
+    /// Each frame's capture time on the camera's clock, which a flight log's
+    /// attitude is looked up at (plus `attitude.time_offset_s`): `pts` (a
+    /// video's presentation timestamps; its default), `rate` (index over
+    /// `fps`; an image folder's default), `names` (the last number in each
+    /// image's file name, seconds; `names_ms`, `names_us`, `names_ns` for
+    /// other units), or the path of a timestamps file (one time in seconds
+    /// per image in name order, or `name,time_s` lines).
+    pub timestamps: Option<String>,
     /// Frames are scaled to this size (the camera model's).
     pub width: u32,
     pub height: u32,
@@ -116,6 +127,15 @@ pub enum Pacing {
 pub const SIM_DEFAULT_SPEED: f64 = 4.0;
 
 impl SourceSection {
+    /// How frames are timed, the kind's default applied.
+    pub fn frame_times(&self) -> FrameTimes {
+        match (&self.timestamps, self.kind) {
+            (Some(spelled), _) => FrameTimes::parse(spelled),
+            (None, SourceKind::Video) => FrameTimes::Pts,
+            (None, _) => FrameTimes::Rate,
+        }
+    }
+
     /// What `speed` means for this kind of source, its default applied.
     pub fn pacing(&self) -> Pacing {
         let speed = match (self.kind, self.speed) {
@@ -421,6 +441,7 @@ impl Default for SourceSection {
             kind: SourceKind::Sim,
             path: None,
             fps: 30.0,
+            timestamps: None,
             width: 1280,
             height: 720,
             flight: None,
@@ -590,6 +611,37 @@ impl EdgeConfig {
                 "source.world",
                 "give a world file or a random world's seed, not both".into(),
             );
+        }
+        match (s.kind, s.frame_times()) {
+            (SourceKind::Images, FrameTimes::Pts) => {
+                return invalid(
+                    "source.timestamps",
+                    "pts are a video's; an image folder takes rate, names, names_ms, names_us, \
+                     names_ns or a timestamps file"
+                        .into(),
+                );
+            }
+            (SourceKind::Video, FrameTimes::Names { .. } | FrameTimes::File(_)) => {
+                return invalid(
+                    "source.timestamps",
+                    "a video's frames are timed by pts or rate".into(),
+                );
+            }
+            (SourceKind::Sim | SourceKind::Rtsp | SourceKind::V4l2, times)
+                if s.timestamps.is_some() && times != FrameTimes::Rate =>
+            {
+                return invalid(
+                    "source.timestamps",
+                    format!("a {:?} source times its own frames; leave it unset", s.kind),
+                );
+            }
+            (_, FrameTimes::File(path)) if !path.is_file() => {
+                return invalid(
+                    "source.timestamps",
+                    format!("no timestamps file at {}", path.display()),
+                );
+            }
+            _ => {}
         }
         if s.queue == 0 || s.queue > 64 {
             return invalid("source.queue", format!("{} is not in 1..=64", s.queue));

@@ -6,6 +6,7 @@
 
 pub mod attitude;
 pub mod config;
+pub mod frame_times;
 pub mod mavlink_out;
 pub mod queue;
 pub mod run;

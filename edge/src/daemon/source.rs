@@ -13,6 +13,8 @@ use nalgebra::Point3;
 use towernav_geometry::Attitude;
 use towernav_protocol::Detection;
 
+use super::frame_times::{self, FrameTimes};
+
 #[derive(Debug, thiserror::Error)]
 pub enum SourceError {
     #[error("image folder {path}: {reason}")]
@@ -50,18 +52,25 @@ pub trait FrameSource: Send {
     fn next_frame(&mut self) -> Option<Result<CapturedFrame, SourceError>>;
     /// For logs and the status: what this source reads.
     fn describe(&self) -> String;
+    /// The first and last frames' times, when known before they are read
+    /// (recordings): a flight log is checked against them at start.
+    fn span_s(&self) -> Option<(f64, f64)> {
+        None
+    }
 }
 
-/// A folder of images (PNG, JPEG), in file-name order, at `fps`.
+/// A folder of images (PNG, JPEG), in file-name order, each at its time.
 pub struct ImageFolderSource {
     folder: PathBuf,
     files: Vec<PathBuf>,
+    times: Vec<f64>,
     next: usize,
     fps: f64,
 }
 
 impl ImageFolderSource {
-    pub fn open(folder: &Path, fps: f64) -> Result<Self, SourceError> {
+    /// The images of `folder`; their times as `times` says (`Rate`: at `fps`).
+    pub fn open(folder: &Path, fps: f64, times: &FrameTimes) -> Result<Self, SourceError> {
         let bad = |reason: String| SourceError::Folder {
             path: folder.to_path_buf(),
             reason,
@@ -82,9 +91,28 @@ impl ImageFolderSource {
         if fps.is_nan() || fps <= 0.0 {
             return Err(bad(format!("the frame rate must be positive, got {fps}")));
         }
+        let times = match times {
+            FrameTimes::Rate => (0..files.len()).map(|i| i as f64 / fps).collect(),
+            FrameTimes::Pts => {
+                return Err(bad(
+                    "presentation timestamps are a video's; for images use rate, names or a file"
+                        .into(),
+                ));
+            }
+            FrameTimes::Names { per_second } => {
+                frame_times::from_names(&files, *per_second).map_err(bad)?
+            }
+            FrameTimes::File(path) => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| bad(format!("timestamps file {}: {e}", path.display())))?;
+                frame_times::from_file(&text, path, &files).map_err(bad)?
+            }
+        };
+        frame_times::check_increasing(&times, |i| files[i].display().to_string()).map_err(bad)?;
         Ok(Self {
             folder: folder.to_path_buf(),
             files,
+            times,
             next: 0,
             fps,
         })
@@ -94,13 +122,14 @@ impl ImageFolderSource {
 impl FrameSource for ImageFolderSource {
     fn next_frame(&mut self) -> Option<Result<CapturedFrame, SourceError>> {
         let path = self.files.get(self.next)?.clone();
+        let time_s = self.times[self.next];
         let seq = self.next as u64;
         self.next += 1;
         Some(
             image::open(&path)
                 .map(|img| CapturedFrame {
                     seq,
-                    time_s: seq as f64 / self.fps,
+                    time_s,
                     captured: Instant::now(),
                     image: Some(img.to_rgb8()),
                     detections: None,
@@ -117,11 +146,15 @@ impl FrameSource for ImageFolderSource {
 
     fn describe(&self) -> String {
         format!(
-            "{} images in {} at {} Hz",
+            "{} images in {} (nominal {} Hz)",
             self.files.len(),
             self.folder.display(),
             self.fps
         )
+    }
+
+    fn span_s(&self) -> Option<(f64, f64)> {
+        Some((*self.times.first()?, *self.times.last()?))
     }
 }
 
@@ -136,12 +169,23 @@ pub struct FfmpegSource {
     height: u32,
     fps: f64,
     live: bool,
+    /// A file's presentation timestamps, in order.
+    pts: Option<Vec<f64>>,
     seq: u64,
     started: Instant,
 }
 
 impl FfmpegSource {
-    pub fn open(input: &str, width: u32, height: u32, fps: f64) -> Result<Self, SourceError> {
+    /// `times`: `Pts` stamps a file's frames with their presentation
+    /// timestamps (read first with ffprobe), `Rate` with index / `fps`; a
+    /// live input is stamped on arrival.
+    pub fn open(
+        input: &str,
+        width: u32,
+        height: u32,
+        fps: f64,
+        times: &FrameTimes,
+    ) -> Result<Self, SourceError> {
         let bad = |reason: String| SourceError::Ffmpeg {
             input: input.to_string(),
             reason,
@@ -150,6 +194,15 @@ impl FfmpegSource {
         if !live && !Path::new(input).is_file() {
             return Err(bad("no such file".into()));
         }
+        let pts = match times {
+            FrameTimes::Pts if !live => Some(video_pts(input).map_err(bad)?),
+            FrameTimes::Pts | FrameTimes::Rate => None,
+            other => {
+                return Err(bad(format!(
+                    "{other:?}: a video's frames are timed by its timestamps (pts) or the rate"
+                )));
+            }
+        };
         let mut cmd = Command::new("ffmpeg");
         cmd.args(["-hide_banner", "-loglevel", "error", "-nostdin"]);
         if input.starts_with("rtsp://") {
@@ -160,6 +213,9 @@ impl FfmpegSource {
         }
         cmd.args(["-i", input])
             .args(["-vf", &format!("scale={width}:{height}")])
+            // One output frame per decoded frame: no frame repeated or dropped
+            // to meet a rate, so the n-th frame has the n-th timestamp.
+            .args(["-fps_mode", "passthrough"])
             .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
@@ -181,10 +237,80 @@ impl FfmpegSource {
             height,
             fps,
             live,
+            pts,
             seq: 0,
             started: Instant::now(),
         })
     }
+}
+
+/// The size of the images in `folder`: its first image's (the pipeline
+/// refuses later ones of another size).
+pub fn image_size(folder: &Path) -> Result<(u32, u32), SourceError> {
+    let source = ImageFolderSource::open(folder, 1.0, &FrameTimes::Rate)?;
+    let first = &source.files[0];
+    image::image_dimensions(first).map_err(|e| SourceError::Image {
+        seq: 0,
+        path: first.clone(),
+        reason: e.to_string(),
+    })
+}
+
+/// A video file's frame size, from ffprobe.
+pub fn video_size(input: &str) -> Result<(u32, u32), SourceError> {
+    let bad = |reason: String| SourceError::Ffmpeg {
+        input: input.to_string(),
+        reason,
+    };
+    if !Path::new(input).is_file() {
+        return Err(bad("no such file".into()));
+    }
+    let output = Command::new("ffprobe")
+        .args(["-v", "error", "-select_streams", "v:0"])
+        .args([
+            "-show_entries",
+            "stream=width,height",
+            "-of",
+            "csv=p=0",
+            input,
+        ])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| bad(format!("cannot start ffprobe ({e}); it comes with ffmpeg")))?;
+    let text = String::from_utf8_lossy(&output.stdout);
+    let mut fields = text.trim().trim_end_matches(',').split(',');
+    match (
+        fields.next().and_then(|w| w.parse().ok()),
+        fields.next().and_then(|h| h.parse().ok()),
+    ) {
+        (Some(w), Some(h)) if output.status.success() => Ok((w, h)),
+        _ => Err(bad(format!(
+            "ffprobe found no video stream size: {}",
+            String::from_utf8_lossy(&output.stderr).trim()
+        ))),
+    }
+}
+
+/// A video file's presentation timestamps, from ffprobe's packet list.
+fn video_pts(input: &str) -> Result<Vec<f64>, String> {
+    let output = Command::new("ffprobe")
+        .args(["-v", "error", "-select_streams", "v:0"])
+        .args(["-show_entries", "packet=pts_time", "-of", "csv=p=0", input])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| format!("cannot start ffprobe ({e}); it comes with ffmpeg"))?;
+    if !output.status.success() {
+        return Err(format!(
+            "ffprobe could not read its timestamps: {}",
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    let times = frame_times::parse_pts(&String::from_utf8_lossy(&output.stdout))?;
+    if times.is_empty() {
+        return Err("it has no video frames".into());
+    }
+    frame_times::check_increasing(&times, |i| format!("frame {i}"))?;
+    Ok(times)
 }
 
 impl FrameSource for FfmpegSource {
@@ -212,10 +338,21 @@ impl FrameSource for FfmpegSource {
         let image = RgbImage::from_raw(self.width, self.height, buf)?;
         let seq = self.seq;
         self.seq += 1;
-        let time_s = if self.live {
-            self.started.elapsed().as_secs_f64()
-        } else {
-            seq as f64 / self.fps
+        let time_s = match &self.pts {
+            Some(pts) => match pts.get(seq as usize) {
+                Some(t) => *t,
+                None => {
+                    return Some(Err(SourceError::Ffmpeg {
+                        input: self.input.clone(),
+                        reason: format!(
+                            "frame {seq} decoded, but ffprobe listed only {} timestamps",
+                            pts.len()
+                        ),
+                    }));
+                }
+            },
+            None if self.live => self.started.elapsed().as_secs_f64(),
+            None => seq as f64 / self.fps,
         };
         Some(Ok(CapturedFrame {
             seq,
@@ -231,11 +368,72 @@ impl FrameSource for FfmpegSource {
     fn describe(&self) -> String {
         format!("ffmpeg: {} ({}x{})", self.input, self.width, self.height)
     }
+
+    fn span_s(&self) -> Option<(f64, f64)> {
+        let pts = self.pts.as_ref()?;
+        Some((*pts.first()?, *pts.last()?))
+    }
 }
 
 impl Drop for FfmpegSource {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn folder(names: &[&str]) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().expect("tempdir");
+        for name in names {
+            RgbImage::new(40, 30)
+                .save(dir.path().join(name))
+                .expect("image");
+        }
+        dir
+    }
+
+    #[test]
+    fn an_image_folder_times_its_frames_by_their_names_or_a_file() {
+        let dir = folder(&["cam_100.250.png", "cam_100.300.png", "cam_100.400.png"]);
+        let names = FrameTimes::Names { per_second: 1.0 };
+        let mut source = ImageFolderSource::open(dir.path(), 30.0, &names).expect("opens");
+        assert_eq!(source.span_s(), Some((100.25, 100.4)));
+        let times: Vec<f64> = std::iter::from_fn(|| source.next_frame())
+            .map(|f| f.expect("frame").time_s)
+            .collect();
+        assert_eq!(times, vec![100.25, 100.3, 100.4]);
+        assert_eq!(image_size(dir.path()).expect("size"), (40, 30));
+
+        let list = dir.path().join("times.txt");
+        std::fs::write(
+            &list,
+            "cam_100.400.png 7\ncam_100.250.png 5\ncam_100.300.png 6\n",
+        )
+        .expect("write");
+        let source =
+            ImageFolderSource::open(dir.path(), 30.0, &FrameTimes::File(list)).expect("opens");
+        assert_eq!(source.span_s(), Some((5.0, 7.0)));
+    }
+
+    #[test]
+    fn names_that_go_back_in_time_are_refused_naming_the_images() {
+        // Name order is not time order here: 9 sorts after 10.
+        let dir = folder(&["f_10.png", "f_9.png"]);
+        let err = ImageFolderSource::open(dir.path(), 30.0, &FrameTimes::Names { per_second: 1.0 })
+            .err()
+            .expect("refused");
+        let text = err.to_string();
+        assert!(
+            text.contains("f_9.png") && text.contains("f_10.png"),
+            "{text}"
+        );
+        let err = ImageFolderSource::open(dir.path(), 30.0, &FrameTimes::Pts)
+            .err()
+            .expect("pts are a video's");
+        assert!(err.to_string().contains("video"), "{err}");
     }
 }
