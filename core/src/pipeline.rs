@@ -330,6 +330,7 @@ impl Pipeline {
                     tower: self.map.towers.get(b.tower)?,
                     bbox: b.bbox,
                     score: b.score,
+                    lens_stretch: self.view.stretch(&b.bbox),
                 })
             })
             .collect();

@@ -28,6 +28,7 @@ fn localizer(c: &mut Criterion) {
                 tower: &map.towers[map.index_of(&b.tower_id)?],
                 bbox: d.bbox,
                 score: d.score,
+                lens_stretch: 1.0,
             })
         })
         .collect();

@@ -197,6 +197,7 @@ pub fn run(
                 tower,
                 bbox: t.bbox,
                 score: 1.0,
+                lens_stretch: 1.0,
             };
             let ours = single_tower_position(&obs, &camera, &frame.imu_attitude).map(|q| {
                 let rel = (tower.foot_in_world - q).xy();

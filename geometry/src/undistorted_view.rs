@@ -58,6 +58,21 @@ impl UndistortedView {
         Some(b)
     }
 
+    /// Ideal-image pixels per real-image pixel along an ideal box's height:
+    /// how much undistortion stretched it (1 without a lens).
+    pub fn stretch(&self, ideal: &PixelBox) -> f64 {
+        if self.real.distortion.is_none() {
+            return 1.0;
+        }
+        let real = self.real.distort_box(ideal);
+        let (h_ideal, h_real) = (ideal.height(), real.height());
+        if h_ideal > 1.0 && h_real > 1.0 {
+            (h_ideal / h_real).clamp(0.25, 4.0)
+        } else {
+            1.0
+        }
+    }
+
     /// An ideal-image box back on the real image, for drawing.
     pub fn to_real(&self, ideal: &PixelBox) -> PixelBox {
         if self.real.distortion.is_none() {
@@ -87,6 +102,17 @@ mod tests {
                 k3: 0.0,
             },
         }
+    }
+
+    #[test]
+    fn a_barrel_lens_stretches_boxes_at_the_sides_not_at_the_centre() {
+        let view = UndistortedView::new(&barrel());
+        let centre = view.stretch(&PixelBox::new(630.0, 300.0, 650.0, 420.0));
+        assert!((centre - 1.0).abs() < 0.02, "{centre}");
+        let side = view.stretch(&PixelBox::new(-60.0, 250.0, -30.0, 470.0));
+        assert!(side > 1.1, "{side}");
+        let ideal = UndistortedView::new(&barrel().ideal());
+        assert_eq!(ideal.stretch(&PixelBox::new(0.0, 0.0, 10.0, 10.0)), 1.0);
     }
 
     #[test]

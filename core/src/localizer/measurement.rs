@@ -50,15 +50,22 @@ impl Usable {
     }
 }
 
-/// Spread of one box edge: grows for small boxes and low scores.
+/// Spread of one box edge in the ideal image: grows for small boxes and low
+/// scores (both as the detector saw them, in the real image) and with the
+/// lens's stretch at the box.
 pub fn edge_sigma(o: &Observation<'_>, params: &LocalizerParams) -> f64 {
-    let h = o.bbox.height().max(1.0);
+    let stretch = if o.lens_stretch.is_finite() && o.lens_stretch > 0.0 {
+        o.lens_stretch
+    } else {
+        1.0
+    };
+    let h = (o.bbox.height() / stretch).max(1.0);
     let score = if o.score.is_finite() {
         o.score.clamp(0.0, 1.0)
     } else {
         0.0
     };
-    params.edge_sigma_px * (1.0 + params.small_box_px / h) * (1.0 + 0.5 * (1.0 - score))
+    stretch * params.edge_sigma_px * (1.0 + params.small_box_px / h) * (1.0 + 0.5 * (1.0 - score))
 }
 
 /// The usable residuals of one observation at state (position, yaw); `out` is cleared first.

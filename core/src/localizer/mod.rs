@@ -95,6 +95,10 @@ pub struct Observation<'a> {
     pub bbox: PixelBox,
     /// Detector confidence, 0..1.
     pub score: f64,
+    /// Ideal-image pixels per real-image pixel at the box (1 without a
+    /// lens): the detector errs in the real image's pixels, so a box that
+    /// undistortion stretched is that much less precise in the ideal one.
+    pub lens_stretch: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -101,7 +101,7 @@ mod tests {
             let a = ahead(150.0, 40.0);
             let b = ahead(220.0, -60.0);
             let towers = [tower("B1", a.x, a.y, 38.0), tower("B2", b.x, b.y, 45.0)];
-            let obs: Vec<_> = towers.iter().map(|t| Observation { tower: t, bbox: label(&camera, &pose, t), score: 0.9 }).collect();
+            let obs: Vec<_> = towers.iter().map(|t| Observation { tower: t, bbox: label(&camera, &pose, t), score: 0.9 , lens_stretch: 1.0}).collect();
             let fix = paper_lbl(&obs, &camera.intrinsics, yaw, &LocalizerParams::default()).expect("fix");
             prop_assert!((fix.position_in_world - pose.position_in_world).norm() < 1e-6);
             prop_assert_eq!(fix.towers_used.len(), 2);
@@ -117,11 +117,13 @@ mod tests {
             tower: &t,
             bbox: PixelBox::new(600.0, 300.0, 604.0, 310.0),
             score: 0.9,
+            lens_stretch: 1.0,
         };
         let cut = Observation {
             tower: &t,
             bbox: PixelBox::new(600.0, 100.0, 640.0, 720.0),
             score: 0.9,
+            lens_stretch: 1.0,
         };
         assert!(paper_lbl(&[tiny, cut], &k, 0.0, &LocalizerParams::default()).is_none());
     }
@@ -139,6 +141,7 @@ mod tests {
                 tower: &t,
                 bbox: label(&camera, &pose, &t),
                 score: 0.9,
+                lens_stretch: 1.0,
             }];
             paper_lbl(&obs, &camera.intrinsics, 0.0, &LocalizerParams::default())
                 .expect("fix")

@@ -388,6 +388,7 @@ mod tests {
                     tower: t,
                     bbox,
                     score: 1.0,
+                    lens_stretch: 1.0,
                 })
             })
             .collect()
@@ -520,6 +521,7 @@ mod tests {
             tower: &near,
             bbox: PixelBox::new(centre - 30.0, top.y, centre + 30.0, 720.0),
             score: 0.9,
+            lens_stretch: 1.0,
         });
         let fix = robust_lbl(
             &obs,
@@ -633,6 +635,7 @@ mod tests {
                         tower: &towers[i],
                         bbox: b,
                         score: 1.0,
+                        lens_stretch: 1.0,
                     };
                     let s = super::super::measurement::edge_sigma(&probe, &params);
                     let mut n = || s * rng.sample::<f64, _>(StandardNormal);
@@ -641,6 +644,7 @@ mod tests {
                         tower: &towers[i],
                         bbox: PixelBox::new(b.left + dl, b.top + dt, b.right + dr, b.bottom + db),
                         score: 1.0,
+                        lens_stretch: 1.0,
                     }
                 })
                 .collect();

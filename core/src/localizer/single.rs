@@ -76,6 +76,7 @@ mod tests {
             tower: &tower,
             bbox: PixelBox::new(top.x - 5.0, top.y, top.x + 5.0, foot.y),
             score: 0.9,
+            lens_stretch: 1.0,
         };
         let ours = single_tower_position(&o, &camera, &attitude).expect("fix");
         assert!((ours - pose.position_in_world).norm() < 1e-6, "{ours}");
