@@ -79,6 +79,8 @@ pub async fn run_edge(
         Some(sim) => sim.source(config),
         None => open_source(config)?,
     };
+    let attitude = open_attitude(&config.attitude)?;
+    check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
     let (pipeline, method) = pipeline_for(config, camera, takeoff_in_world, map)?;
     let core = DaemonCore::new(
         DaemonConfig {
@@ -108,10 +110,7 @@ pub async fn run_edge(
     let daemon = Daemon {
         node: &node,
         source,
-        worker: Worker {
-            detector,
-            attitude: open_attitude(&config.attitude)?,
-        },
+        worker: Worker { detector, attitude },
         core,
         datum,
         options,
@@ -174,7 +173,7 @@ fn autopilot_link(config: &EdgeConfig, datum: Datum) -> AutopilotLink {
 }
 
 /// The pipeline the config asks for, and its method.
-fn pipeline_for(
+pub(crate) fn pipeline_for(
     config: &EdgeConfig,
     camera: PinholeCamera,
     takeoff_in_world: Point3<f64>,
@@ -309,7 +308,9 @@ fn landmark_records(
 }
 
 /// The YOLO detector and its name for the status, or the oracle.
-fn load_detector(section: &DetectorSection) -> anyhow::Result<(Option<YoloDetector>, String)> {
+pub(crate) fn load_detector(
+    section: &DetectorSection,
+) -> anyhow::Result<(Option<YoloDetector>, String)> {
     match section.kind {
         DetectorKind::Oracle => Ok((None, "oracle".to_string())),
         DetectorKind::Yolo => {
@@ -338,22 +339,49 @@ fn load_detector(section: &DetectorSection) -> anyhow::Result<(Option<YoloDetect
     }
 }
 
+/// Refuses a recording whose frames the flight log does not cover (the
+/// camera-to-log offset applied), saying by how much.
+pub(crate) fn check_log_covers(
+    source: &dyn FrameSource,
+    attitude: &AttitudeSource,
+    section: &AttitudeSection,
+) -> anyhow::Result<()> {
+    if let (AttitudeSource::Log { log, offset_s }, Some((first, last))) =
+        (attitude, source.span_s())
+    {
+        let path = section.path.as_deref().unwrap_or(Path::new(""));
+        log.check_covers(first + offset_s, last + offset_s)
+            .map_err(|e| e.in_file(path))
+            .with_context(|| {
+                format!(
+                    "frames {first:.3}-{last:.3} s on the camera's clock, attitude.time_offset_s = {offset_s}"
+                )
+            })?;
+    }
+    Ok(())
+}
+
 /// An image folder, or anything ffmpeg reads.
-fn open_source(config: &EdgeConfig) -> anyhow::Result<Box<dyn FrameSource>> {
+pub(crate) fn open_source(config: &EdgeConfig) -> anyhow::Result<Box<dyn FrameSource>> {
     let source = &config.source;
     let path = source.path.as_deref().unwrap_or_default();
     Ok(match source.kind {
-        SourceKind::Images => Box::new(ImageFolderSource::open(Path::new(path), source.fps)?),
+        SourceKind::Images => Box::new(ImageFolderSource::open(
+            Path::new(path),
+            source.fps,
+            &source.frame_times(),
+        )?),
         _ => Box::new(FfmpegSource::open(
             path,
             source.width,
             source.height,
             source.fps,
+            &source.frame_times(),
         )?),
     })
 }
 
-fn open_attitude(section: &AttitudeSection) -> anyhow::Result<AttitudeSource> {
+pub(crate) fn open_attitude(section: &AttitudeSection) -> anyhow::Result<AttitudeSource> {
     Ok(match section.kind {
         AttitudeKind::Source => AttitudeSource::Frames,
         AttitudeKind::Log | AttitudeKind::Csv => {

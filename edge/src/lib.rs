@@ -13,6 +13,7 @@ pub mod landmark_sync;
 #[cfg(not(feature = "demo"))]
 pub mod no_sim;
 pub mod node;
+pub mod replay;
 
 #[cfg(feature = "demo")]
 pub mod collector;

@@ -31,6 +31,11 @@ enum Command {
     Demo(RunArgs),
     /// Print the default configuration as TOML (a starting point for --config).
     PrintConfig,
+    /// Replay a recorded flight (video or images, flight log, calibration,
+    /// landmarks) through the pipeline, every frame, and score it against
+    /// the log's GNSS: poses.jsonl, replay.json and plots in --out.
+    #[cfg(feature = "demo")]
+    Replay(cli::replay_command::ReplayArgs),
     #[cfg(feature = "demo")]
     #[command(flatten)]
     Eval(cli::eval_command::EvalCommand),
@@ -52,6 +57,8 @@ fn main() -> anyhow::Result<()> {
         }
         #[cfg(feature = "demo")]
         Command::Eval(eval) => return eval.run(),
+        #[cfg(feature = "demo")]
+        Command::Replay(replay) => return replay.run(),
         Command::Run(args) => (args, false),
         Command::Demo(args) => (args, true),
     };

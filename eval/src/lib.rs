@@ -3,12 +3,14 @@
 //! IDF1 (`mot_metrics`, `tracking_eval`), localization error (`loc_eval`,
 //! `sim_eval`), the demo's report (`report`) and its scoring of the daemon's
 //! outputs against truth (`truth_scorer`); the detector on real labelled
-//! photographs and tower-free frames (`image_folder`, `real_score`); `cmd` holds the eval commands
+//! photographs and tower-free frames (`image_folder`, `real_score`); a
+//! replayed real flight against its log's GNSS (`gnss_score`); `cmd` holds the eval commands
 //! with their tables, files and plots.
 
 pub mod annotate;
 pub mod cmd;
 pub mod confusion;
+pub mod gnss_score;
 pub mod image_folder;
 pub mod loc_eval;
 pub mod map_eval;

@@ -5,6 +5,7 @@ mod detector;
 mod edge_daemon;
 mod fleet;
 mod flight_logs;
+mod flight_replay;
 mod ground_station_net;
 mod invariants;
 mod landmark_import;

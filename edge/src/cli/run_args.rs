@@ -60,12 +60,23 @@ pub struct RunArgs {
     /// Stop after this many frames.
     #[arg(long)]
     pub max_frames: Option<u64>,
-    /// Attitude input: source, csv, mavlink.
-    #[arg(long, value_parser = ["source", "csv", "mavlink"])]
+    /// How recorded frames are timed: pts (a video's), rate (index over
+    /// --fps), names, names_ms, names_us, names_ns, or a timestamps file.
+    #[arg(long)]
+    pub timestamps: Option<String>,
+    /// The camera's calibration file (OpenCV, ROS camera_info or Kalibr).
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// Attitude input: source, log (csv is another name for it), mavlink.
+    #[arg(long, value_parser = ["source", "log", "csv", "mavlink"])]
     pub attitude: Option<String>,
-    /// The attitude CSV log (time_s,roll_deg,pitch_deg,heading_deg).
+    /// The flight log for `--attitude log`: ArduPilot .bin, MAVLink .tlog,
+    /// PX4 .ulg, or a CSV of time_s,roll_deg,pitch_deg,heading_deg.
     #[arg(long)]
     pub attitude_log: Option<PathBuf>,
+    /// Seconds from the camera's clock to the log's.
+    #[arg(long, allow_hyphen_values = true)]
+    pub time_offset: Option<f64>,
     /// Landmarks to localize against (.csv or a landmark database); default: the simulated world's.
     #[arg(long, conflicts_with = "replica")]
     pub landmarks: Option<PathBuf>,
@@ -170,6 +181,15 @@ impl RunArgs {
         }
         if let Some(v) = &self.attitude_log {
             c.attitude.path = Some(v.clone());
+        }
+        if let Some(v) = self.time_offset {
+            c.attitude.time_offset_s = v;
+        }
+        if let Some(v) = &self.timestamps {
+            c.source.timestamps = Some(v.clone());
+        }
+        if let Some(v) = &self.calibration {
+            c.camera.calibration = Some(v.clone());
         }
         if let Some(v) = &self.landmarks {
             c.landmarks.file = Some(v.clone());
