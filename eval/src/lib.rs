@@ -11,6 +11,7 @@ pub mod annotate;
 pub mod cmd;
 pub mod confusion;
 pub mod gnss_score;
+pub mod hota;
 pub mod image_folder;
 pub mod loc_eval;
 pub mod map_eval;

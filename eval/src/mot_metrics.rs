@@ -1,34 +1,27 @@
-//! Tracking metrics against truth (pure): CLEAR MOT (MOTA, ID switches,
-//! fragmentation), IDF1, the paper's identity counts (distinct IDs, repetitive
-//! labeling: one ID on several towers; hop labeling: one tower under several
-//! IDs), and binding accuracy for tower identities.
+//! Tracking metrics against truth (pure), matched as MOTChallenge's tools
+//! (TrackEval, py-motmetrics) match: plain IoU at 0.5, and hypotheses that a
+//! one-to-one matching puts on "don't care" boxes removed before scoring.
+//! CLEAR MOT (MOTA, ID switches, fragmentation), IDF1, HOTA with DetA and
+//! AssA, the paper's identity counts (distinct IDs, repetitive labeling: one
+//! ID on several towers; hop labeling: one tower under several IDs), and
+//! binding accuracy for tower identities.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::{BTreeSet, HashMap, HashSet};
 
 use towernav_geometry::PixelBox;
 
 use towernav_core::assignment::max_score_matching;
 
-/// Least overlap for a hypothesis to count as covering a true box (MOTChallenge's 0.5),
-/// measured by `overlap`.
+use crate::hota::{Hota, HotaFrame, hota};
+
+/// Least IoU for a hypothesis to cover a true box (MOTChallenge's 0.5).
 pub const MATCH_IOU: f64 = 0.5;
 
-/// IoU with both boxes widened to at least a third of their height about
-/// their centres. A far tower is a few pixels wide and tens tall: plain IoU
-/// would call a 2 px sideways error a miss; this keeps the test about where
-/// the tower is, not about the width of its image.
-pub fn overlap(a: &PixelBox, b: &PixelBox) -> f64 {
-    let widen = |p: &PixelBox| {
-        let w = p.width().max(p.height() / 3.0);
-        PixelBox::new(
-            p.center_x() - w / 2.0,
-            p.top,
-            p.center_x() + w / 2.0,
-            p.bottom,
-        )
-    };
-    widen(a).iou(&widen(b))
-}
+/// TrackEval compares IoU with the threshold less a float epsilon.
+const MATCH_MIN: f64 = MATCH_IOU - 1e-9;
+
+/// A previous frame's pairing outweighs any IoU in CLEAR MOT's matching.
+const CONTINUITY_BONUS: f64 = 1000.0;
 
 /// One reported box: its identity as the method states it, and the tower it is bound to.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,6 +31,17 @@ pub struct Hypothesis {
     pub tower: Option<String>,
 }
 
+/// Identities as dense indices, in order of appearance.
+#[derive(Debug, Clone, Default)]
+struct Ids(HashMap<String, usize>);
+
+impl Ids {
+    fn of(&mut self, id: &str) -> usize {
+        let next = self.0.len();
+        *self.0.entry(id.to_string()).or_insert(next)
+    }
+}
+
 #[derive(Debug, Clone, Default)]
 pub struct MotAccumulator {
     gt_total: usize,
@@ -45,9 +49,13 @@ pub struct MotAccumulator {
     false_positives: usize,
     misses: usize,
     id_switches: usize,
-    fragmentations: usize,
-    /// gt id -> (last matched hyp, matched in the previous frame).
-    last: HashMap<String, (Option<String>, bool)>,
+    /// gt id -> the hypothesis it was last matched to, ever (for switches).
+    prev_hyp: HashMap<String, String>,
+    /// gt id -> its hypothesis in the previous frame (for continuity).
+    prev_frame_hyp: HashMap<String, String>,
+    /// gt id -> times its tracking started again (for fragmentation).
+    starts: HashMap<String, usize>,
+    gt_seen: BTreeSet<String>,
     /// (gt, hyp) -> frames where they overlap enough: for IDF1.
     pair_frames: HashMap<(String, String), usize>,
     hyp_to_gt: HashMap<String, HashSet<String>>,
@@ -56,6 +64,9 @@ pub struct MotAccumulator {
     bound_right: usize,
     matched_frames: usize,
     matched_bound: usize,
+    hota_frames: Vec<HotaFrame>,
+    gt_ids: Ids,
+    hyp_ids: Ids,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -67,6 +78,7 @@ pub struct MotMetrics {
     pub fragmentations: usize,
     pub mota: f64,
     pub idf1: f64,
+    pub hota: Hota,
     /// Hypothesis IDs that covered a true tower at least once, and true towers seen.
     pub distinct_ids: usize,
     pub true_towers: usize,
@@ -79,36 +91,57 @@ pub struct MotMetrics {
     pub binding_coverage: f64,
 }
 
+/// Hypotheses left once those a one-to-one IoU matching over every true
+/// box puts on a "don't care" box are removed, as MOTChallenge removes
+/// hypotheses on its distractors.
+fn without_dont_care<'a>(
+    truth: &[(String, PixelBox)],
+    dont_care: &[PixelBox],
+    hyps: &'a [Hypothesis],
+) -> Vec<&'a Hypothesis> {
+    if dont_care.is_empty() || hyps.is_empty() {
+        return hyps.iter().collect();
+    }
+    let all: Vec<&PixelBox> = truth.iter().map(|(_, b)| b).chain(dont_care).collect();
+    let removed: HashSet<usize> = max_score_matching(
+        all.len(),
+        hyps.len(),
+        |r, c| all[r].iou(&hyps[c].bbox),
+        MATCH_MIN,
+    )
+    .into_iter()
+    .filter(|(r, _)| *r >= truth.len())
+    .map(|(_, c)| c)
+    .collect();
+    hyps.iter()
+        .enumerate()
+        .filter(|(i, _)| !removed.contains(i))
+        .map(|(_, h)| h)
+        .collect()
+}
+
 impl MotAccumulator {
-    /// Add one frame: true boxes by tower id, boxes to ignore (towers too small
-    /// or hidden to demand; hypotheses on them are neither hits nor false
-    /// positives, as MOTChallenge treats its "don't care" boxes), and the hypotheses.
+    /// Add one frame: true boxes by tower id, boxes that are neither to be
+    /// found nor false when found (towers too small or hidden to demand),
+    /// and the hypotheses.
     pub fn add_frame(
         &mut self,
         truth: &[(String, PixelBox)],
-        ignore: &[PixelBox],
+        dont_care: &[PixelBox],
         hyps: &[Hypothesis],
     ) {
-        let kept: Vec<Hypothesis>;
-        let hyps = if ignore.is_empty() {
-            hyps
-        } else {
-            kept = hyps
-                .iter()
-                .filter(|h| {
-                    let on_ignored = ignore.iter().any(|i| overlap(i, &h.bbox) >= MATCH_IOU);
-                    let on_truth = truth.iter().any(|(_, g)| overlap(g, &h.bbox) >= MATCH_IOU);
-                    on_truth || !on_ignored
-                })
-                .cloned()
-                .collect();
-            &kept
-        };
+        let hyps = without_dont_care(truth, dont_care, hyps);
         self.gt_total += truth.len();
         self.hyp_total += hyps.len();
-        for (g, gb) in truth {
-            for h in hyps {
-                if overlap(gb, &h.bbox) >= MATCH_IOU {
+        let iou: Vec<f64> = truth
+            .iter()
+            .flat_map(|(_, g)| hyps.iter().map(move |h| g.iou(&h.bbox)))
+            .collect();
+        let sim = |gi: usize, hi: usize| iou[gi * hyps.len() + hi];
+        for (gi, (g, _)) in truth.iter().enumerate() {
+            self.gt_seen.insert(g.clone());
+            for (hi, h) in hyps.iter().enumerate() {
+                if sim(gi, hi) >= MATCH_MIN {
                     *self
                         .pair_frames
                         .entry((g.clone(), h.id.clone()))
@@ -116,74 +149,56 @@ impl MotAccumulator {
                 }
             }
         }
-        let (matched_gt, hyp_taken) = self.correspondences(truth, hyps);
-        for (gi, (g, _)) in truth.iter().enumerate() {
-            let entry = self.last.entry(g.clone()).or_insert((None, false));
-            match matched_gt[gi] {
-                Some(hi) => {
-                    let h = &hyps[hi];
-                    if let Some(prev) = &entry.0
-                        && prev != &h.id
-                    {
-                        self.id_switches += 1;
-                    }
-                    if entry.0.is_some() && !entry.1 {
-                        self.fragmentations += 1;
-                    }
-                    *entry = (Some(h.id.clone()), true);
-                    self.count_match(g, h);
-                }
-                None => {
-                    self.misses += 1;
-                    entry.1 = false;
-                }
-            }
+        let frame = HotaFrame {
+            gt: truth.iter().map(|(g, _)| self.gt_ids.of(g)).collect(),
+            hyp: hyps.iter().map(|h| self.hyp_ids.of(&h.id)).collect(),
+            iou: iou.clone(),
+        };
+        self.hota_frames.push(frame);
+        if truth.is_empty() || hyps.is_empty() {
+            // TrackEval keeps the previous frame's pairs across such a frame.
+            self.false_positives += hyps.len();
+            self.misses += truth.len();
+            self.bound_frames += hyps.iter().filter(|h| h.tower.is_some()).count();
+            return;
         }
+        let pairs = max_score_matching(
+            truth.len(),
+            hyps.len(),
+            |gi, hi| {
+                let s = sim(gi, hi);
+                let continued = self.prev_frame_hyp.get(&truth[gi].0) == Some(&hyps[hi].id);
+                if s < MATCH_MIN {
+                    0.0
+                } else {
+                    s + if continued { CONTINUITY_BONUS } else { 0.0 }
+                }
+            },
+            MATCH_MIN,
+        );
+        let mut taken = vec![false; hyps.len()];
+        let mut now: HashMap<String, String> = HashMap::new();
+        for &(gi, hi) in &pairs {
+            let (g, h) = (&truth[gi].0, hyps[hi]);
+            if self.prev_hyp.get(g).is_some_and(|p| p != &h.id) {
+                self.id_switches += 1;
+            }
+            if !self.prev_frame_hyp.contains_key(g) {
+                *self.starts.entry(g.clone()).or_insert(0) += 1;
+            }
+            self.prev_hyp.insert(g.clone(), h.id.clone());
+            now.insert(g.clone(), h.id.clone());
+            taken[hi] = true;
+            self.count_match(g, h);
+        }
+        self.prev_frame_hyp = now;
+        self.misses += truth.len() - pairs.len();
         for (hi, h) in hyps.iter().enumerate() {
-            if !hyp_taken[hi] {
+            if !taken[hi] {
                 self.false_positives += 1;
                 self.bound_frames += usize::from(h.tower.is_some());
             }
         }
-    }
-
-    /// Which hypothesis covers each true tower this frame, and which
-    /// hypotheses are taken.
-    fn correspondences(
-        &self,
-        truth: &[(String, PixelBox)],
-        hyps: &[Hypothesis],
-    ) -> (Vec<Option<usize>>, Vec<bool>) {
-        // CLEAR MOT: keep last frame's correspondences that still overlap, then Hungarian.
-        let mut matched_gt = vec![None; truth.len()];
-        let mut hyp_taken = vec![false; hyps.len()];
-        for (gi, (g, gb)) in truth.iter().enumerate() {
-            let Some((Some(prev), _)) = self.last.get(g) else {
-                continue;
-            };
-            if let Some(hi) = hyps
-                .iter()
-                .position(|h| &h.id == prev && overlap(&h.bbox, gb) >= MATCH_IOU)
-                && !hyp_taken[hi]
-            {
-                matched_gt[gi] = Some(hi);
-                hyp_taken[hi] = true;
-            }
-        }
-        let free_gt: Vec<usize> = (0..truth.len())
-            .filter(|&i| matched_gt[i].is_none())
-            .collect();
-        let free_hyp: Vec<usize> = (0..hyps.len()).filter(|&i| !hyp_taken[i]).collect();
-        for (r, c) in max_score_matching(
-            free_gt.len(),
-            free_hyp.len(),
-            |r, c| overlap(&truth[free_gt[r]].1, &hyps[free_hyp[c]].bbox),
-            MATCH_IOU,
-        ) {
-            matched_gt[free_gt[r]] = Some(free_hyp[c]);
-            hyp_taken[free_hyp[c]] = true;
-        }
-        (matched_gt, hyp_taken)
     }
 
     /// A true tower `g` covered by `h`: the identity maps and the binding counts.
@@ -206,40 +221,33 @@ impl MotAccumulator {
 
     pub fn finish(&self) -> MotMetrics {
         // IDF1: the one-to-one gt/hyp pairing that maximises frames in common.
-        let gts: Vec<&String> = self.gt_to_hyp_all_gts();
+        let gts: Vec<&String> = self.gt_seen.iter().collect();
         let hyps: Vec<&String> = self.hyp_ids();
-        let idtp: usize = max_score_matching(
-            gts.len(),
-            hyps.len(),
-            |r, c| {
-                self.pair_frames
-                    .get(&(gts[r].clone(), hyps[c].clone()))
-                    .copied()
-                    .unwrap_or(0) as f64
-            },
-            0.5,
-        )
-        .into_iter()
-        .map(|(r, c)| {
+        let frames_of = |r: usize, c: usize| {
             self.pair_frames
                 .get(&(gts[r].clone(), hyps[c].clone()))
                 .copied()
                 .unwrap_or(0)
-        })
-        .sum();
+        };
+        let idtp: usize =
+            max_score_matching(gts.len(), hyps.len(), |r, c| frames_of(r, c) as f64, 0.5)
+                .into_iter()
+                .map(|(r, c)| frames_of(r, c))
+                .sum();
         let ratio = |a: usize, b: usize| if b == 0 { 0.0 } else { a as f64 / b as f64 };
         MotMetrics {
             frames_gt: self.gt_total,
             false_positives: self.false_positives,
             misses: self.misses,
             id_switches: self.id_switches,
-            fragmentations: self.fragmentations,
+            fragmentations: self.starts.values().map(|n| n.saturating_sub(1)).sum(),
             mota: 1.0
                 - ratio(
                     self.misses + self.false_positives + self.id_switches,
                     self.gt_total,
                 ),
             idf1: ratio(2 * idtp, self.gt_total + self.hyp_total),
+            hota: hota(&self.hota_frames, self.gt_ids.0.len(), self.hyp_ids.0.len()),
             distinct_ids: self.hyp_to_gt.len(),
             true_towers: self.gt_to_hyp.len(),
             repetitive_errors: self
@@ -255,12 +263,6 @@ impl MotAccumulator {
             binding_accuracy: ratio(self.bound_right, self.bound_frames),
             binding_coverage: ratio(self.matched_bound, self.matched_frames),
         }
-    }
-
-    fn gt_to_hyp_all_gts(&self) -> Vec<&String> {
-        let mut v: Vec<&String> = self.last.keys().collect();
-        v.sort();
-        v
     }
 
     fn hyp_ids(&self) -> Vec<&String> {
@@ -293,16 +295,6 @@ mod tests {
     }
 
     #[test]
-    fn a_thin_far_tower_a_pixel_off_still_matches() {
-        let truth = PixelBox::new(600.0, 300.0, 604.0, 330.0);
-        let seen = PixelBox::new(602.0, 301.0, 606.0, 331.0);
-        assert!(truth.iou(&seen) < 0.5, "plain IoU would call it a miss");
-        assert!(overlap(&truth, &seen) >= MATCH_IOU);
-        let elsewhere = PixelBox::new(640.0, 300.0, 644.0, 330.0);
-        assert!(overlap(&truth, &elsewhere) < 0.1);
-    }
-
-    #[test]
     fn perfect_tracking_scores_one() {
         let mut acc = MotAccumulator::default();
         for _ in 0..10 {
@@ -328,9 +320,11 @@ mod tests {
     #[test]
     fn hops_repeats_switches_and_fragments_are_counted() {
         let mut acc = MotAccumulator::default();
-        // A1 is tracked as "1", lost for a frame, then as "3" (a hop and a switch, a fragment).
+        // A1 is tracked as "1", lost for a frame (a box elsewhere that frame:
+        // as TrackEval, a frame with no box at all keeps the previous
+        // frame's pairs), then as "3" (a hop and a switch, a fragment).
         acc.add_frame(&[("A1".into(), b(0.0))], &[], &[hyp("1", 0.0, Some("A1"))]);
-        acc.add_frame(&[("A1".into(), b(0.0))], &[], &[]);
+        acc.add_frame(&[("A1".into(), b(0.0))], &[], &[hyp("8", 900.0, None)]);
         acc.add_frame(&[("A1".into(), b(0.0))], &[], &[hyp("3", 0.0, Some("A2"))]);
         // Later "1" covers A2: one ID on two towers.
         acc.add_frame(
@@ -343,11 +337,163 @@ mod tests {
         assert_eq!(m.repetitive_errors, 1);
         assert_eq!(m.id_switches, 1);
         assert_eq!(m.fragmentations, 1);
-        assert_eq!((m.misses, m.false_positives), (1, 1));
+        assert_eq!((m.misses, m.false_positives), (1, 2));
         // Bound track-frames: A1 right, A2-on-A1 wrong, the false positive bound to B1 wrong.
         assert!((m.binding_accuracy - 1.0 / 3.0).abs() < 1e-12);
-        assert!((m.mota - (1.0 - 3.0 / 4.0)).abs() < 1e-12);
+        assert!((m.mota - (1.0 - 4.0 / 4.0)).abs() < 1e-12);
         // IDF1: best one-to-one pairing covers 1 frame of A1 ("1") and 1 of A2 ("1" taken: "3" for A1)...
         assert!(m.idf1 > 0.0 && m.idf1 < 1.0);
+    }
+
+    /// A sequence scored by TrackEval 1.3.0 (`trackeval.Evaluator` on
+    /// `MotChallenge2DBox`, default MOT17 settings, metrics HOTA, CLEAR and
+    /// Identity): three towers, one don't-care box (class 8, a distractor)
+    /// that one hypothesis sits on and later leaves, an ID switch, a gap, a
+    /// loose box, a false track and a duplicate.
+    const FIXTURE_GT: &str = "\
+1,1,105,200,20,100,1,1,1.0
+1,2,400,180,30,120,1,1,1.0
+1,4,900,300,10,30,0,8,0.2
+2,1,110,200,20,100,1,1,1.0
+2,2,400,180,30,120,1,1,1.0
+2,4,900,300,10,30,0,8,0.2
+3,1,115,200,20,100,1,1,1.0
+3,2,400,180,30,120,1,1,1.0
+3,4,900,300,10,30,0,8,0.2
+4,1,120,200,20,100,1,1,1.0
+4,2,400,180,30,120,1,1,1.0
+4,4,900,300,10,30,0,8,0.2
+5,1,125,200,20,100,1,1,1.0
+5,2,400,180,30,120,1,1,1.0
+5,3,685,150,15,60,1,1,1.0
+5,4,900,300,10,30,0,8,0.2
+6,1,130,200,20,100,1,1,1.0
+6,2,400,180,30,120,1,1,1.0
+6,3,682,150,15,60,1,1,1.0
+6,4,900,300,10,30,0,8,0.2
+7,1,135,200,20,100,1,1,1.0
+7,2,400,180,30,120,1,1,1.0
+7,3,679,150,15,60,1,1,1.0
+7,4,900,300,10,30,0,8,0.2
+8,1,140,200,20,100,1,1,1.0
+8,2,400,180,30,120,1,1,1.0
+8,3,676,150,15,60,1,1,1.0
+8,4,900,300,10,30,0,8,0.2
+9,1,145,200,20,100,1,1,1.0
+9,2,400,180,30,120,1,1,1.0
+9,3,673,150,15,60,1,1,1.0
+9,4,900,300,10,30,0,8,0.2
+10,1,150,200,20,100,1,1,1.0
+10,2,400,180,30,120,1,1,1.0
+10,3,670,150,15,60,1,1,1.0
+10,4,900,300,10,30,0,8,0.2
+";
+    const FIXTURE_HYPS: &str = "\
+1,1,107,202,20,100,1,-1,-1,-1
+1,3,401,182,30,118,1,-1,-1,-1
+1,5,901,300,10,30,1,-1,-1,-1
+2,1,112,202,20,100,1,-1,-1,-1
+2,3,401,182,30,118,1,-1,-1,-1
+2,5,901,300,10,30,1,-1,-1,-1
+3,1,117,202,20,100,1,-1,-1,-1
+3,3,406,182,30,118,1,-1,-1,-1
+3,5,901,300,10,30,1,-1,-1,-1
+4,1,122,202,20,100,1,-1,-1,-1
+4,5,907,310,10,30,1,-1,-1,-1
+5,1,127,202,20,100,1,-1,-1,-1
+5,3,401,182,30,118,1,-1,-1,-1
+6,2,132,202,20,100,1,-1,-1,-1
+6,3,406,182,30,118,1,-1,-1,-1
+6,4,689,152,15,60,1,-1,-1,-1
+7,2,137,202,20,100,1,-1,-1,-1
+7,3,401,182,30,118,1,-1,-1,-1
+7,4,680,152,15,60,1,-1,-1,-1
+8,2,142,202,20,100,1,-1,-1,-1
+8,3,401,182,30,118,1,-1,-1,-1
+8,4,677,152,15,60,1,-1,-1,-1
+8,6,1100,400,20,60,1,-1,-1,-1
+9,2,147,202,20,100,1,-1,-1,-1
+9,3,406,182,30,118,1,-1,-1,-1
+9,4,674,152,15,60,1,-1,-1,-1
+9,6,1100,400,20,60,1,-1,-1,-1
+10,2,152,202,20,100,1,-1,-1,-1
+10,3,401,182,30,118,1,-1,-1,-1
+10,4,671,152,15,60,1,-1,-1,-1
+10,7,151,201,20,100,1,-1,-1,-1
+";
+
+    fn mot_box(fields: &[f64]) -> PixelBox {
+        PixelBox::new(
+            fields[2],
+            fields[3],
+            fields[2] + fields[4],
+            fields[3] + fields[5],
+        )
+    }
+
+    fn rows(text: &str) -> Vec<Vec<f64>> {
+        text.lines()
+            .map(|l| l.split(',').map(|v| v.parse().expect("a number")).collect())
+            .collect()
+    }
+
+    #[test]
+    fn a_fixed_sequence_scores_as_trackeval_scores_it() {
+        let (gt, hyps) = (rows(FIXTURE_GT), rows(FIXTURE_HYPS));
+        let mut acc = MotAccumulator::default();
+        for frame in 1..=10 {
+            let in_frame = |r: &&Vec<f64>| r[0] == f64::from(frame);
+            let truth: Vec<(String, PixelBox)> = gt
+                .iter()
+                .filter(in_frame)
+                .filter(|r| r[7] == 1.0 && r[6] != 0.0)
+                .map(|r| (format!("{}", r[1]), mot_box(r)))
+                .collect();
+            let dont_care: Vec<PixelBox> = gt
+                .iter()
+                .filter(in_frame)
+                .filter(|r| r[7] == 8.0)
+                .map(|r| mot_box(r))
+                .collect();
+            let h: Vec<Hypothesis> = hyps
+                .iter()
+                .filter(in_frame)
+                .map(|r| Hypothesis {
+                    id: format!("{}", r[1]),
+                    bbox: mot_box(r),
+                    tower: None,
+                })
+                .collect();
+            acc.add_frame(&truth, &dont_care, &h);
+        }
+        let m = acc.finish();
+        // TrackEval: CLR_TP 23, CLR_FN 3, CLR_FP 5, IDSW 1, Frag 1,
+        // MOTA 0.6538461538461539, IDF1 0.6666666666666666 (IDTP 18),
+        // HOTA 0.5994920005941505, DetA 0.6130153527686735,
+        // AssA 0.6017548050728829, LocA 0.833089252768689.
+        assert_eq!((m.misses, m.false_positives), (3, 5));
+        assert_eq!((m.id_switches, m.fragmentations), (1, 1));
+        assert!((m.mota - 0.6538461538461539).abs() < 1e-12, "{}", m.mota);
+        assert!((m.idf1 - 0.6666666666666666).abs() < 1e-12, "{}", m.idf1);
+        assert!(
+            (m.hota.hota - 0.5994920005941505).abs() < 1e-6,
+            "{:?}",
+            m.hota
+        );
+        assert!(
+            (m.hota.det_a - 0.6130153527686735).abs() < 1e-6,
+            "{:?}",
+            m.hota
+        );
+        assert!(
+            (m.hota.ass_a - 0.6017548050728829).abs() < 1e-6,
+            "{:?}",
+            m.hota
+        );
+        assert!(
+            (m.hota.loc_a - 0.833089252768689).abs() < 1e-6,
+            "{:?}",
+            m.hota
+        );
     }
 }

@@ -83,12 +83,6 @@ pub struct TrackingRun {
     pub metrics: MotMetrics,
 }
 
-/// Whether a true box is one a tracker must cover: tall enough that the
-/// detector reliably reports it, and mostly unhidden. Others are "don't care".
-pub fn demanded(b: &towernav_sim::TruthBox, scenario: &Scenario) -> bool {
-    b.bbox.height() >= 2.0 * scenario.oracle.min_height_px && b.occluded < 0.75
-}
-
 /// Score one frame's hypotheses against its truth (demanded boxes; the rest "don't care").
 pub fn add_frame(
     acc: &mut MotAccumulator,
@@ -96,7 +90,7 @@ pub fn add_frame(
     truth: &FrameTruth,
     hyps: &[Hypothesis],
 ) {
-    let (gt, ignore): (Vec<_>, Vec<_>) = truth.boxes.iter().partition(|b| demanded(b, scenario));
+    let (gt, ignore): (Vec<_>, Vec<_>) = truth.boxes.iter().partition(|b| scenario.demanded(b));
     let gt: Vec<(String, _)> = gt.iter().map(|b| (b.tower_id.clone(), b.bbox)).collect();
     let ignore: Vec<_> = ignore.iter().map(|b| b.bbox).collect();
     acc.add_frame(&gt, &ignore, hyps);

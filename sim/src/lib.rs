@@ -7,6 +7,7 @@
 pub mod flight;
 pub mod gnss;
 pub mod landmark_world;
+pub mod mot;
 pub mod oracle;
 pub mod quadrotor;
 pub mod render;

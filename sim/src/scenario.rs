@@ -11,7 +11,7 @@ use crate::flight::{Flight, StraightFlight};
 use crate::oracle::{OracleDetector, OracleParams};
 use crate::quadrotor::{QuadParams, fly};
 use crate::render::{Conditions, FrameBuffers, Renderer};
-use crate::truth::{FrameTruth, Outline, frame_truth, outlines};
+use crate::truth::{FrameTruth, Outline, TruthBox, frame_truth, outlines};
 use crate::waypoints::{FlightPlan, PlanError, random_crossing};
 use crate::world::World;
 use crate::world::WorldParams;
@@ -139,6 +139,13 @@ impl Scenario {
 
     pub fn frame_count(&self) -> u64 {
         (self.flight.duration_s() * self.fps).floor() as u64
+    }
+
+    /// Whether a tracker must cover this true box: tall enough that the
+    /// detector reliably reports it, and mostly unhidden. Others are "don't
+    /// care": a hypothesis on one is neither a hit nor a false positive.
+    pub fn demanded(&self, b: &TruthBox) -> bool {
+        b.bbox.height() >= 2.0 * self.oracle.min_height_px && b.occluded < 0.75
     }
 
     pub fn start_in_world(&self) -> Point3<f64> {

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
+use anyhow::Context;
 use mavlink::dialects::common::{ATTITUDE_DATA, MavMessage};
 use mavlink::{MavConnection, MavHeader};
 use towernav_edge::daemon::attitude::MavlinkAttitude;
@@ -290,8 +291,15 @@ async fn pymavlink_decodes_an_honest_link_through_a_flight_that_leaves_the_tower
 
 #[test]
 fn attitude_from_the_autopilot_is_read_in_enu() -> anyhow::Result<()> {
-    let port = free_udp_port();
-    let input = MavlinkAttitude::listen(&format!("udpin:127.0.0.1:{port}"))?;
+    // Another process may take a port between its check and this bind: try the next.
+    let (port, input) = (0..5)
+        .find_map(|_| {
+            let port = free_udp_port();
+            MavlinkAttitude::listen(&format!("udpin:127.0.0.1:{port}"))
+                .ok()
+                .map(|input| (port, input))
+        })
+        .context("no UDP port to listen on")?;
     let autopilot = mavlink::connect::<MavMessage>(&format!("udpout:127.0.0.1:{port}"))?;
     let attitude = MavMessage::ATTITUDE(ATTITUDE_DATA {
         roll: 0.1,

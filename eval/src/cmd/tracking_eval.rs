@@ -42,6 +42,9 @@ pub fn cases(seed: u64) -> anyhow::Result<Vec<(String, Scenario)>> {
     Ok(out)
 }
 
+/// The benchmark's name in TrackEval's layout (`gt/mot_challenge/TOWERS-train/`).
+pub const BENCHMARK: &str = "TOWERS";
+
 /// One MOT-challenge results file: `frame,id,left,top,width,height,conf,-1,-1,-1`.
 /// Identities that are not numbers (tower ids) are numbered in order of appearance.
 pub fn write_mot(path: &Path, r: &TrackingRun) -> anyhow::Result<()> {
@@ -74,6 +77,10 @@ pub fn write_mot(path: &Path, r: &TrackingRun) -> anyhow::Result<()> {
 /// of the Rust crop descriptor.
 pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let split = format!("{BENCHMARK}-train");
+    let gt_root = out.join("gt").join("mot_challenge");
+    let trackers_root = out.join("trackers").join("mot_challenge").join(&split);
+    let mut seqmap = String::from("name\n");
     let mut model = reid.map(|p| ReidModel::load(p, 2)).transpose()?;
     let mut failure: Option<OnnxError> = None;
     for (name, scenario) in cases(seed)? {
@@ -88,6 +95,9 @@ pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<(
             "frag",
             "MOTA",
             "IDF1",
+            "HOTA",
+            "DetA",
+            "AssA",
             "binding accuracy",
             "bound share",
         ]);
@@ -110,6 +120,9 @@ pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<(
             .chars()
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
             .collect();
+        write_gt(&gt_root.join(&split).join(&slug), &slug, &scenario)?;
+        seqmap.push_str(&slug);
+        seqmap.push('\n');
         for method in Method::ALL {
             let r = run(&scenario, &map, method, Some(&features));
             let m = r.metrics;
@@ -123,6 +136,9 @@ pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<(
                 m.fragmentations.to_string(),
                 format!("{:.3}", m.mota),
                 format!("{:.3}", m.idf1),
+                format!("{:.3}", m.hota.hota),
+                format!("{:.3}", m.hota.det_a),
+                format!("{:.3}", m.hota.ass_a),
                 if binds {
                     format!("{:.2} %", 100.0 * m.binding_accuracy)
                 } else {
@@ -134,8 +150,10 @@ pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<(
                     "-".into()
                 },
             ]);
-            let file = out.join(format!("{slug}.{}.txt", method.slug()));
-            write_mot(&file, &r)?;
+            let data = trackers_root.join(method.slug()).join("data");
+            std::fs::create_dir_all(&data)
+                .with_context(|| format!("creating {}", data.display()))?;
+            write_mot(&data.join(format!("{slug}.txt")), &r)?;
         }
         println!(
             "{name} ({} towers, {} frames, oracle detector; DeepSORT appearance: {}):\n{table}\n",
@@ -146,6 +164,33 @@ pub fn write_all(out: &Path, seed: u64, reid: Option<&Path>) -> anyhow::Result<(
                 .to_string())
         );
     }
-    println!("MOT-challenge results in {}", out.display());
+    let seqmaps = gt_root.join("seqmaps");
+    std::fs::create_dir_all(&seqmaps).with_context(|| format!("creating {}", seqmaps.display()))?;
+    let seqmap_path = seqmaps.join(format!("{split}.txt"));
+    std::fs::write(&seqmap_path, seqmap)
+        .with_context(|| format!("writing {}", seqmap_path.display()))?;
+    println!(
+        "MOT-challenge ground truth and results in {} (TrackEval's layout: --GT_FOLDER {} \
+         --TRACKERS_FOLDER {} --BENCHMARK {BENCHMARK} --SPLIT_TO_EVAL train)",
+        out.display(),
+        gt_root.display(),
+        out.join("trackers").join("mot_challenge").display()
+    );
+    Ok(())
+}
+
+/// One scenario's ground truth: `gt/gt.txt`, `gt/towers.csv`, `seqinfo.ini`.
+fn write_gt(dir: &Path, name: &str, scenario: &Scenario) -> anyhow::Result<()> {
+    let frames: Vec<_> = (0..scenario.frame_count())
+        .map(|s| scenario.truth(s))
+        .collect();
+    for (file, text) in towernav_sim::mot::sequence_files(name, scenario, &frames)? {
+        let path = dir.join(file);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("creating {}", parent.display()))?;
+        }
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
     Ok(())
 }

@@ -242,14 +242,7 @@ fn write_world(
         truths.push(truth);
     }
     let seq_dir = out.join("mot").join(split.name()).join(&name);
-    mot::write_sequence(
-        &seq_dir,
-        &name,
-        &scenario.world,
-        &truths,
-        scenario.fps,
-        (k.width, k.height),
-    )?;
+    mot::write_sequence(&seq_dir, &name, &scenario, &truths)?;
     let towers_csv = seq_dir.join("towers.csv");
     let file = std::fs::File::create(&towers_csv)
         .with_context(|| format!("creating {}", towers_csv.display()))?;

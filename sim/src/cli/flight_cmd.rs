@@ -157,14 +157,7 @@ pub fn write_flight(
     };
     let source = if images { &camera } else { replay };
     write_replay_config(scenario, out, &towers, source)?;
-    mot::write_sequence(
-        &seq_dir,
-        name,
-        &scenario.world,
-        &truths,
-        scenario.fps,
-        (k.width, k.height),
-    )
+    mot::write_sequence(&seq_dir, name, scenario, &truths)
 }
 
 /// The camera's calibration file beside the flight, as `camera.<ext>`.
