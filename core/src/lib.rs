@@ -21,6 +21,7 @@ pub mod landmarks;
 pub mod localizer;
 pub mod pipeline;
 pub mod replica;
+pub mod survey_labels;
 pub mod tracker;
 pub mod wire;
 

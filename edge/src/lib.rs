@@ -14,6 +14,7 @@ pub mod landmark_sync;
 pub mod no_sim;
 pub mod node;
 pub mod replay;
+pub mod survey;
 
 #[cfg(feature = "demo")]
 pub mod collector;

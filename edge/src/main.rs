@@ -36,6 +36,11 @@ enum Command {
     /// the log's GNSS: poses.jsonl, replay.json and plots in --out.
     #[cfg(feature = "demo")]
     Replay(cli::replay_command::ReplayArgs),
+    /// Labels from a survey flight: every tower projected into the frames by
+    /// the log's GNSS and attitude, snapped to the detector's boxes, written
+    /// as a YOLO dataset with a report of every label.
+    #[cfg(feature = "demo")]
+    Label(cli::label_command::LabelArgs),
     #[cfg(feature = "demo")]
     #[command(flatten)]
     Eval(cli::eval_command::EvalCommand),
@@ -59,6 +64,8 @@ fn main() -> anyhow::Result<()> {
         Command::Eval(eval) => return eval.run(),
         #[cfg(feature = "demo")]
         Command::Replay(replay) => return replay.run(),
+        #[cfg(feature = "demo")]
+        Command::Label(label) => return label.run(),
         Command::Run(args) => (args, false),
         Command::Demo(args) => (args, true),
     };

@@ -60,13 +60,28 @@ impl PixelBox {
             && self.bottom.is_finite()
     }
 
-    /// Intersection over union; 0 for disjoint or empty boxes.
-    pub fn iou(&self, other: &PixelBox) -> f64 {
+    /// The area both boxes cover.
+    pub fn intersection_area(&self, other: &PixelBox) -> f64 {
         let w = (self.right.min(other.right) - self.left.max(other.left)).max(0.0);
         let h = (self.bottom.min(other.bottom) - self.top.max(other.top)).max(0.0);
-        let inter = w * h;
+        w * h
+    }
+
+    /// Intersection over union; 0 for disjoint or empty boxes.
+    pub fn iou(&self, other: &PixelBox) -> f64 {
+        let inter = self.intersection_area(other);
         let union = self.area() + other.area() - inter;
         if union <= 0.0 { 0.0 } else { inter / union }
+    }
+
+    /// The smallest box around both.
+    pub fn union(&self, other: &PixelBox) -> PixelBox {
+        PixelBox {
+            left: self.left.min(other.left),
+            top: self.top.min(other.top),
+            right: self.right.max(other.right),
+            bottom: self.bottom.max(other.bottom),
+        }
     }
 
     /// The part inside a `width` x `height` image.

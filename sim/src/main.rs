@@ -120,6 +120,10 @@ enum Command {
         /// One-sigma horizontal GNSS error of flight.tlog's positions, metres.
         #[arg(long, default_value_t = 1.5)]
         gnss_sigma_m: f64,
+        /// One-sigma IMU attitude error (roll, pitch and heading), degrees;
+        /// default: the simulator's IMU (0.1 roll and pitch, 0.2 heading).
+        #[arg(long)]
+        attitude_sigma_deg: Option<f64>,
         #[arg(long, value_enum, default_value = "default")]
         weather: Weather,
         #[arg(long)]
@@ -217,9 +221,14 @@ fn main() -> anyhow::Result<()> {
             video,
             calibration,
             gnss_sigma_m,
+            attitude_sigma_deg,
             weather,
             out,
         } => {
+            anyhow::ensure!(
+                attitude_sigma_deg.is_none_or(|s| s.is_finite() && s >= 0.0),
+                "--attitude-sigma-deg must be 0 or more"
+            );
             anyhow::ensure!(
                 gnss_sigma_m.is_finite() && gnss_sigma_m >= 0.0,
                 "--gnss-sigma-m must be 0 or more, got {gnss_sigma_m}"
@@ -234,7 +243,15 @@ fn main() -> anyhow::Result<()> {
                     ..GnssParams::default()
                 },
             };
-            fly(&world, &plan, seed, &outputs, weather, &out)?
+            fly(
+                &world,
+                &plan,
+                seed,
+                &outputs,
+                attitude_sigma_deg,
+                weather,
+                &out,
+            )?
         }
         Command::Render {
             world,
@@ -288,11 +305,16 @@ fn fly(
     plan: &PlanArg,
     seed: u64,
     outputs: &FlightOutputs<'_>,
+    attitude_sigma_deg: Option<f64>,
     weather: Weather,
     out: &std::path::Path,
 ) -> anyhow::Result<()> {
     let flight_plan = plan.plan()?;
     let mut scenario = Scenario::flying(world.world()?, &flight_plan, seed);
+    if let Some(deg) = attitude_sigma_deg {
+        scenario.imu.roll_pitch_sigma = deg.to_radians();
+        scenario.imu.yaw_sigma = deg.to_radians();
+    }
     if let Some(path) = outputs.calibration {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("reading calibration {}", path.display()))?;

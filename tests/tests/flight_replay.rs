@@ -1,17 +1,20 @@
 //! A recorded flight replayed as a user's real one would be: the simulator
 //! flies a pass through a barrel lens and writes it as an H.264 video and a
-//! MAVLink `.tlog` (attitude, and GNSS with 1.5 m of error, on an autopilot
-//! clock 12.5 s ahead of the camera's); `towernav-edge replay` takes the
+//! MAVLink `.tlog` (attitude with 0.5 degrees of error, and GNSS with 1.5 m,
+//! on an autopilot clock 12.5 s ahead of the camera's); `towernav-edge replay` takes the
 //! video, the log, the calibration and the towers, and its poses are scored
 //! here against the simulator's truth. The same flight from its image folder
 //! with the CSV log, and through an ideal lens, are the references (the
 //! figures are in the test). Bad
 //! inputs (a calibration of another size, a log without attitude, a video
 //! longer than its log, a wrong offset) are refused saying what and where.
+//! The same flight, as a survey flight, labels itself (`towernav-edge
+//! label`), and the labels are checked against the simulator's truth boxes.
 //!
 //! Runs the `towernav-sim` and `towernav-edge` binaries that `cargo test
 //! --workspace` builds beside this test, and ffmpeg.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -446,4 +449,119 @@ fn pymavlink_reads_the_simulator_s_tlog_as_the_flight_it_flew() {
     }
     let rms = (sum / fixes.len() as f64).sqrt();
     assert!((0.5..4.0).contains(&rms), "GNSS error RMS {rms:.2} m");
+}
+
+/// The simulator's truth boxes: (frame, tower) to (box, cut by the frame, occluded share).
+fn truth_boxes(flight: &Path) -> HashMap<(u64, String), ([f64; 4], bool, f64)> {
+    let text = std::fs::read_to_string(flight.join("truth.csv")).expect("truth.csv");
+    text.lines()
+        .skip(1)
+        .map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            let num = |i: usize| f[i].parse::<f64>().expect("a number");
+            (
+                (f[0].parse().expect("seq"), f[1].to_string()),
+                ([num(3), num(4), num(5), num(6)], f[7] == "true", num(8)),
+            )
+        })
+        .collect()
+}
+
+fn iou(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    let w = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
+    let h = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+    let union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - w * h;
+    if union > 0.0 { w * h / union } else { 0.0 }
+}
+
+#[test]
+fn a_survey_flight_labels_its_towers_where_the_truth_has_them() {
+    let flights = flights();
+    let f = &flights.bent;
+    let out = tempfile::tempdir().expect("tempdir");
+    let labels = out.path().join("labels");
+    ok(
+        "towernav-edge",
+        &[
+            "label",
+            "--video",
+            s(&f.join("flight.mp4")),
+            "--log",
+            s(&f.join("flight.tlog")),
+            "--time-offset",
+            TLOG_OFFSET_S,
+            "--camera",
+            s(&f.join("camera.yaml")),
+            "--landmarks",
+            s(&f.join("towers.csv")),
+            "--every",
+            "10",
+            "--out",
+            s(&labels),
+        ],
+    );
+    let truth = truth_boxes(f);
+    let report = std::fs::read_to_string(labels.join("report.csv")).expect("report.csv");
+    let mut labelled: HashMap<(u64, String), [f64; 4]> = HashMap::new();
+    let mut frames = std::collections::HashSet::new();
+    for line in report.lines().skip(1) {
+        let c: Vec<&str> = line.split(',').collect();
+        let seq: u64 = c[0].trim_start_matches("frame_").parse().expect("frame");
+        frames.insert(seq);
+        if c[2].starts_with("dropped") {
+            continue;
+        }
+        let b = [7, 8, 9, 10].map(|i| c[i].parse::<f64>().ok());
+        let b = if b.iter().all(Option::is_some) {
+            b.map(|v| v.unwrap_or_default())
+        } else {
+            [3, 4, 5, 6].map(|i| c[i].parse::<f64>().expect("projected box"))
+        };
+        labelled.insert((seq, c[1].to_string()), b);
+    }
+    assert!(frames.len() >= 60, "{} frames labelled", frames.len());
+    // No label on a tower the frame does not show.
+    let phantom: Vec<_> = labelled.keys().filter(|k| !truth.contains_key(k)).collect();
+    assert!(
+        phantom.is_empty(),
+        "labels on towers out of view: {phantom:?}"
+    );
+    // Towers taller than 40 px, in full view and mostly unhidden: labelled,
+    // and at IoU 0.7 or more with the truth.
+    let wanted: Vec<_> = truth
+        .iter()
+        .filter(|((seq, _), (b, cut, occluded))| {
+            frames.contains(seq) && b[3] - b[1] > 40.0 && !cut && *occluded < 0.5
+        })
+        .collect();
+    let good = wanted
+        .iter()
+        .filter(|(k, (b, _, _))| labelled.get(*k).is_some_and(|l| iou(l, b) >= 0.7))
+        .count();
+    let share = good as f64 / wanted.len() as f64;
+    eprintln!(
+        "labels at IoU >= 0.7: {good} of {} towers ({:.1} %)",
+        wanted.len(),
+        100.0 * share
+    );
+    assert!(wanted.len() > 300, "{} towers to label", wanted.len());
+    assert!(
+        share >= 0.9,
+        "{good} of {} at IoU 0.7 or more",
+        wanted.len()
+    );
+    // The dataset Ultralytics reads: one label file per image, boxes inside the frame.
+    let yaml = std::fs::read_to_string(labels.join("data.yaml")).expect("data.yaml");
+    assert!(
+        yaml.contains("names:") && yaml.contains("0: \"A\""),
+        "{yaml}"
+    );
+    let label_files = std::fs::read_dir(labels.join("labels"))
+        .expect("labels/")
+        .count();
+    let images = std::fs::read_dir(labels.join("images"))
+        .expect("images/")
+        .count();
+    assert_eq!(label_files, images);
+    assert_eq!(images, frames.len());
 }

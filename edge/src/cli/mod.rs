@@ -5,5 +5,7 @@ pub mod detector_args;
 #[cfg(feature = "demo")]
 pub mod eval_command;
 #[cfg(feature = "demo")]
+pub mod label_command;
+#[cfg(feature = "demo")]
 pub mod replay_command;
 pub mod run_args;

@@ -1,0 +1,438 @@
+//! Labels from a survey flight: where GNSS still works and the towers are in
+//! the database, each tower's top and foot projected into every frame give
+//! its box by the labelling convention (top of the tower to its foot) with no
+//! one drawing it. Pure: a frame's camera pose and the towers in, labels out;
+//! then each label is snapped to the detector's box where the two agree, so
+//! a small pose error does not shift it.
+
+use nalgebra::{Point2, Point3, Vector3};
+use towernav_geometry::{PinholeCamera, PixelBox, Pose};
+use towernav_protocol::TowerType;
+
+use crate::assignment::max_score_matching;
+
+/// A surveyed tower as the labeller sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurveyTower {
+    pub id: String,
+    pub tower_type: TowerType,
+    pub foot_in_world: Point3<f64>,
+    pub height_m: f64,
+    /// Width of the tower's silhouette, cross-arms included, metres.
+    pub width_m: f64,
+}
+
+/// A tower's silhouette width when the database has no base width: lattice
+/// towers' cross-arms span about a third of their height.
+pub const WIDTH_PER_HEIGHT: f64 = 0.33;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LabelParams {
+    /// Towers shorter than this in the image are not labelled.
+    pub min_height_px: f64,
+    /// The share of a box that nearer towers may cover before it is hidden.
+    pub max_hidden: f64,
+    /// The share of a box that must be inside the frame.
+    pub min_in_frame: f64,
+    /// A detector's box this close (IoU) to a projected one replaces it.
+    pub snap_iou: f64,
+}
+
+impl Default for LabelParams {
+    fn default() -> Self {
+        Self {
+            min_height_px: 24.0,
+            max_hidden: 0.75,
+            min_in_frame: 0.5,
+            snap_iou: 0.5,
+        }
+    }
+}
+
+/// Why a tower in the database got no label in a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Dropped {
+    /// Behind the camera, or outside the frame.
+    OutOfView,
+    /// Less than `min_in_frame` of it inside the frame.
+    CutByFrame { in_frame: f64 },
+    /// Shorter than `min_height_px`.
+    TooSmall { height_px: f64 },
+    /// Covered by nearer towers.
+    Hidden { covered: f64 },
+    /// At the frame's edge with no detector box to confirm it: a small pose
+    /// error puts such a tower in or out of the frame.
+    Unconfirmed,
+}
+
+/// One tower in one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TowerLabel {
+    pub tower: usize,
+    /// Projected from the pose, clipped to the frame.
+    pub projected: PixelBox,
+    pub distance_m: f64,
+    /// The detector's box it was snapped to, and their IoU.
+    pub snapped: Option<(PixelBox, f64)>,
+    /// Not snapped: the projection moved by the frame's median offset
+    /// between the snapped labels and their projections (the pose error
+    /// every projection of the frame shares).
+    pub shifted: Option<PixelBox>,
+    pub dropped: Option<Dropped>,
+}
+
+impl TowerLabel {
+    /// The box to write: the detector's where it agreed, else the projection.
+    pub fn label(&self) -> Option<PixelBox> {
+        match (self.dropped, self.snapped) {
+            (Some(_), _) => None,
+            (None, Some((b, _))) => Some(b),
+            (None, None) => Some(self.shifted.unwrap_or(self.projected)),
+        }
+    }
+}
+
+/// The tower's box in the ideal pinhole's image (its silhouette's corners:
+/// the axis from foot to top and the width), its nearest depth and where
+/// the middle of its axis is; `None`
+/// when any of it is behind the camera. Projected ideal first: a lens model
+/// is only valid over its frame, and points far outside it fold back in.
+fn project(
+    camera: &PinholeCamera,
+    pose: &Pose,
+    t: &SurveyTower,
+) -> Option<(PixelBox, f64, Point2<f64>)> {
+    let ideal = camera.ideal();
+    let camera_from_world = camera.world_from_camera(pose).inverse();
+    let middle = ideal.project(
+        &(camera_from_world * (t.foot_in_world + Vector3::new(0.0, 0.0, t.height_m / 2.0))),
+    )?;
+    let half = t.width_m / 2.0;
+    let mut b: Option<PixelBox> = None;
+    let mut depth: f64 = f64::INFINITY;
+    for z in [0.0, t.height_m] {
+        for (dx, dy) in [
+            (-half, -half),
+            (half, -half),
+            (-half, half),
+            (half, half),
+            (0.0, 0.0),
+        ] {
+            let p = camera_from_world * (t.foot_in_world + Vector3::new(dx, dy, z));
+            if p.z <= 0.5 {
+                return None;
+            }
+            depth = depth.min(p.z);
+            let px = ideal.project(&p)?;
+            let corner = PixelBox::new(px.x, px.y, px.x, px.y);
+            b = Some(b.map_or(corner, |b| b.union(&corner)));
+        }
+    }
+    Some((b?, depth, middle))
+}
+
+/// The part of the ideal image that the real frame sees: the box around
+/// its undistorted border.
+fn seen_in_ideal(camera: &PinholeCamera) -> PixelBox {
+    let k = &camera.intrinsics;
+    let (w, h) = (f64::from(k.width), f64::from(k.height));
+    let frame = PixelBox::new(0.0, 0.0, w, h);
+    if camera.distortion.is_none() {
+        return frame;
+    }
+    let steps = 32;
+    (0..=steps)
+        .flat_map(|i| {
+            let t = f64::from(i) / f64::from(steps);
+            [(t * w, 0.0), (t * w, h), (0.0, t * h), (w, t * h)]
+        })
+        .filter_map(|(x, y)| camera.undistort_pixel(&nalgebra::Point2::new(x, y)))
+        .fold(frame, |b, p| b.union(&PixelBox::new(p.x, p.y, p.x, p.y)))
+}
+
+/// Every tower's label in one frame seen from `pose`, with the reason for
+/// each one dropped.
+pub fn project_labels(
+    camera: &PinholeCamera,
+    pose: &Pose,
+    towers: &[SurveyTower],
+    params: &LabelParams,
+) -> Vec<TowerLabel> {
+    let k = &camera.intrinsics;
+    let (w, h) = (f64::from(k.width), f64::from(k.height));
+    let seen = seen_in_ideal(camera);
+    let mut labels: Vec<TowerLabel> = towers
+        .iter()
+        .enumerate()
+        .filter_map(|(i, t)| {
+            let (full, distance_m, middle) = project(camera, pose, t)?;
+            let axis_seen = (seen.left..=seen.right).contains(&middle.x)
+                && (seen.top..=seen.bottom).contains(&middle.y);
+            let visible = PixelBox::new(
+                full.left.max(seen.left),
+                full.top.max(seen.top),
+                full.right.min(seen.right),
+                full.bottom.min(seen.bottom),
+            );
+            let in_view = visible.width() > 0.0 && visible.height() > 0.0;
+            let real = if in_view {
+                camera.distort_box(&visible).clipped(w, h)
+            } else {
+                PixelBox::new(0.0, 0.0, 0.0, 0.0)
+            };
+            let in_frame = if in_view && full.area() > 0.0 {
+                visible.area() / full.area()
+            } else {
+                0.0
+            };
+            // A tower beside the camera spans the frame with its near
+            // corners while the tower itself, its axis, is out of it.
+            let dropped = if real.area() <= 0.0 || !axis_seen {
+                Some(Dropped::OutOfView)
+            } else if in_frame < params.min_in_frame {
+                Some(Dropped::CutByFrame { in_frame })
+            } else if real.height() < params.min_height_px {
+                Some(Dropped::TooSmall {
+                    height_px: real.height(),
+                })
+            } else {
+                None
+            };
+            Some(TowerLabel {
+                tower: i,
+                projected: real,
+                distance_m,
+                snapped: None,
+                shifted: None,
+                dropped,
+            })
+        })
+        .collect();
+    labels.sort_by(|a, b| a.distance_m.total_cmp(&b.distance_m));
+    // Nearer towers hide farther ones: the share of a box under a nearer
+    // tower's body. A lattice tower's box is mostly sky between its arms; its
+    // body, the middle third of the box, is what hides.
+    for i in 0..labels.len() {
+        if labels[i].dropped.is_some() {
+            continue;
+        }
+        let b = labels[i].projected;
+        let covered = labels[..i]
+            .iter()
+            // A tower the frame cuts has a box as wide as the frame's edge
+            // lets it be; it hides what is at that edge, not mid-frame.
+            .filter(|n| {
+                !matches!(
+                    n.dropped,
+                    Some(Dropped::OutOfView | Dropped::CutByFrame { .. })
+                )
+            })
+            .map(|n| b.intersection_area(&body(&n.projected)))
+            .fold(0.0, f64::max)
+            / b.area().max(1e-9);
+        if covered > params.max_hidden {
+            labels[i].dropped = Some(Dropped::Hidden { covered });
+        }
+    }
+    labels
+}
+
+/// The middle third of a tower's box: its body, without the arms' span.
+fn body(b: &PixelBox) -> PixelBox {
+    let third = b.width() / 3.0;
+    PixelBox::new(b.left + third, b.top, b.right - third, b.bottom)
+}
+
+/// How well a detector's box `d` explains a projected one `p`: the IoU of
+/// their shapes once centred on each other, discounted by how far apart the
+/// centres are in units of the projected height. A pose error moves every
+/// projection by tens of pixels; it does not change the shapes.
+fn agreement(p: &PixelBox, d: &PixelBox) -> f64 {
+    let (dx, dy) = (d.center_x() - p.center_x(), d.center_y() - p.center_y());
+    let moved = PixelBox::new(p.left + dx, p.top + dy, p.right + dx, p.bottom + dy);
+    let offset = dx.hypot(dy) / p.height().max(1.0);
+    if offset > MAX_OFFSET {
+        return 0.0;
+    }
+    moved.iou(d) * (1.0 - offset / MAX_OFFSET).sqrt()
+}
+
+/// A detection whose centre is farther than this many projected heights
+/// from a projection is another tower's.
+const MAX_OFFSET: f64 = 0.6;
+
+/// Snaps each kept label to the detector's box that best agrees with it in
+/// shape and place (one to one; shape IoU at least `snap_iou`); moves the
+/// others by the frame's offset, and drops those of them at the edge of a
+/// `width` x `height` frame.
+pub fn snap(
+    labels: &mut [TowerLabel],
+    detections: &[PixelBox],
+    params: &LabelParams,
+    (width, height): (f64, f64),
+) {
+    let kept: Vec<usize> = (0..labels.len())
+        .filter(|&i| labels[i].dropped.is_none())
+        .collect();
+    for (r, c) in max_score_matching(
+        kept.len(),
+        detections.len(),
+        |r, c| agreement(&labels[kept[r]].projected, &detections[c]),
+        params.snap_iou * 0.5,
+    ) {
+        let p = labels[kept[r]].projected;
+        let (dx, dy) = (
+            detections[c].center_x() - p.center_x(),
+            detections[c].center_y() - p.center_y(),
+        );
+        let shape =
+            PixelBox::new(p.left + dx, p.top + dy, p.right + dx, p.bottom + dy).iou(&detections[c]);
+        if shape >= params.snap_iou {
+            labels[kept[r]].snapped = Some((detections[c], p.iou(&detections[c])));
+        }
+    }
+    shift_the_rest(labels);
+    const EDGE_PX: f64 = 2.0;
+    for l in labels
+        .iter_mut()
+        .filter(|l| l.dropped.is_none() && l.snapped.is_none())
+    {
+        let b = l.shifted.unwrap_or(l.projected);
+        let at_edge = b.left <= EDGE_PX
+            || b.top <= EDGE_PX
+            || b.right >= width - EDGE_PX
+            || b.bottom >= height - EDGE_PX;
+        if at_edge {
+            l.dropped = Some(Dropped::Unconfirmed);
+        }
+    }
+}
+
+/// Moves the unsnapped labels by the median offset of the snapped ones.
+fn shift_the_rest(labels: &mut [TowerLabel]) {
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let offsets: Vec<(f64, f64)> = labels
+        .iter()
+        .filter_map(|l| {
+            let (d, _) = l.snapped?;
+            Some((
+                d.center_x() - l.projected.center_x(),
+                d.center_y() - l.projected.center_y(),
+            ))
+        })
+        .collect();
+    if offsets.is_empty() {
+        return;
+    }
+    let dx = median(offsets.iter().map(|o| o.0).collect());
+    let dy = median(offsets.iter().map(|o| o.1).collect());
+    for l in labels
+        .iter_mut()
+        .filter(|l| l.dropped.is_none() && l.snapped.is_none())
+    {
+        let p = l.projected;
+        l.shifted = Some(PixelBox::new(
+            p.left + dx,
+            p.top + dy,
+            p.right + dx,
+            p.bottom + dy,
+        ));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use towernav_geometry::{Attitude, CameraMount, Intrinsics};
+
+    fn tower(id: &str, east: f64, north: f64) -> SurveyTower {
+        SurveyTower {
+            id: id.into(),
+            tower_type: TowerType::A,
+            foot_in_world: Point3::new(east, north, 0.0),
+            height_m: 30.0,
+            width_m: 10.0,
+        }
+    }
+
+    fn setup() -> (PinholeCamera, Pose) {
+        let camera = PinholeCamera::pinhole(
+            Intrinsics::from_hfov(1280, 720, 70.0),
+            CameraMount::default(),
+        );
+        // 30 m up, looking north.
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: Attitude::level(std::f64::consts::FRAC_PI_2),
+        };
+        (camera, pose)
+    }
+
+    #[test]
+    fn a_tower_ahead_is_labelled_top_to_foot_and_the_rest_say_why_not() {
+        let (camera, pose) = setup();
+        let towers = [
+            tower("ahead", 0.0, 100.0),
+            tower("behind", 0.0, -100.0),
+            tower("far", 0.0, 3000.0),
+            tower("hidden", 0.5, 300.0),
+            tower("aside", 400.0, 100.0),
+        ];
+        let labels = project_labels(&camera, &pose, &towers, &LabelParams::default());
+        let of = |id: &str| labels.iter().find(|l| towers[l.tower].id == id);
+        let ahead = of("ahead").expect("labelled");
+        assert!(ahead.dropped.is_none());
+        // Foot 30 m below the camera at 100 m, top level with it.
+        let f = camera.intrinsics.fy;
+        let cy = camera.intrinsics.cy;
+        assert!(
+            (ahead.projected.bottom - (cy + f * 30.0 / 95.0)).abs() < 25.0,
+            "{ahead:?}"
+        );
+        assert!((ahead.projected.top - cy).abs() < 25.0, "{ahead:?}");
+        assert!(of("behind").is_none(), "behind the camera: not projected");
+        assert!(matches!(
+            of("far").and_then(|l| l.dropped),
+            Some(Dropped::TooSmall { .. })
+        ));
+        assert!(matches!(
+            of("hidden").and_then(|l| l.dropped),
+            Some(Dropped::Hidden { .. })
+        ));
+        assert!(matches!(
+            of("aside").and_then(|l| l.dropped),
+            Some(Dropped::OutOfView)
+        ));
+    }
+
+    #[test]
+    fn a_label_takes_the_detector_s_box_where_they_agree() {
+        let (camera, pose) = setup();
+        let towers = [tower("ahead", 0.0, 100.0), tower("left", -40.0, 120.0)];
+        let mut labels = project_labels(&camera, &pose, &towers, &LabelParams::default());
+        let ahead = labels.iter().position(|l| l.tower == 0).expect("ahead");
+        let p = labels[ahead].projected;
+        let detected = PixelBox::new(p.left + 3.0, p.top - 2.0, p.right + 3.0, p.bottom + 1.0);
+        let elsewhere = PixelBox::new(1100.0, 10.0, 1120.0, 60.0);
+        snap(
+            &mut labels,
+            &[elsewhere, detected],
+            &LabelParams::default(),
+            (1280.0, 720.0),
+        );
+        assert_eq!(labels[ahead].label(), Some(detected));
+        let left = labels.iter().find(|l| l.tower == 1).expect("left");
+        assert!(left.snapped.is_none(), "no detector box agrees");
+        // It moves with the frame's offset: the snapped label's centre shift.
+        let q = left.projected;
+        let moved = PixelBox::new(q.left + 3.0, q.top - 0.5, q.right + 3.0, q.bottom - 0.5);
+        let got = left.label().expect("kept");
+        assert!(
+            (got.left - moved.left).abs() < 1e-9 && (got.top - moved.top).abs() < 1e-9,
+            "{got:?} against {moved:?}"
+        );
+    }
+}

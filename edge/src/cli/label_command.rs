@@ -1,0 +1,120 @@
+//! `towernav-edge label`: labels from a survey flight (desk build, beside `replay`).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use towernav_core::survey_labels::LabelParams;
+use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig, SourceKind};
+use towernav_edge::survey::{LabelOptions, label_flight};
+
+/// A survey flight (GNSS still working) into a YOLO dataset: every tower in
+/// the landmarks projected into every `--every`-th frame by the log's GNSS
+/// and attitude, and snapped to the detector's box where they agree.
+#[derive(Args)]
+pub struct LabelArgs {
+    /// The camera's video.
+    #[arg(long, conflicts_with = "images")]
+    video: Option<PathBuf>,
+    /// A folder of the camera's images, in name order.
+    #[arg(long)]
+    images: Option<PathBuf>,
+    /// How frames are timed: pts, rate (with --fps), names, names_ms,
+    /// names_us, names_ns, or a timestamps file.
+    #[arg(long)]
+    timestamps: Option<String>,
+    #[arg(long)]
+    fps: Option<f64>,
+    /// The flight log with attitude and GNSS: ArduPilot .bin, MAVLink .tlog,
+    /// PX4 .ulg or CSV.
+    #[arg(long)]
+    log: PathBuf,
+    /// Seconds from the camera's clock to the log's.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
+    time_offset: f64,
+    /// The camera's calibration: OpenCV YAML/JSON, ROS camera_info or Kalibr.
+    #[arg(long)]
+    camera: PathBuf,
+    /// The towers: a landmark CSV or database.
+    #[arg(long)]
+    landmarks: PathBuf,
+    /// Label every n-th frame.
+    #[arg(long, default_value_t = 5)]
+    every: u64,
+    /// Towers shorter than this in the image get no label.
+    #[arg(long, default_value_t = 24.0)]
+    min_height_px: f64,
+    /// The IoU at which a detector's box replaces the projected one.
+    #[arg(long, default_value_t = 0.5)]
+    snap_iou: f64,
+    /// Keep the projections; run no detector.
+    #[arg(long)]
+    no_snap: bool,
+    /// One class, `tower`, instead of the database's types.
+    #[arg(long)]
+    one_class: bool,
+    /// YOLO model to snap to; default: the daemon's.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Folder for images/, labels/, data.yaml and report.csv.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+impl LabelArgs {
+    pub fn run(&self) -> anyhow::Result<()> {
+        let mut c = EdgeConfig::default();
+        match (&self.video, &self.images) {
+            (Some(v), _) => {
+                c.source.kind = SourceKind::Video;
+                c.source.path = Some(v.display().to_string());
+            }
+            (None, Some(i)) => {
+                c.source.kind = SourceKind::Images;
+                c.source.path = Some(i.display().to_string());
+            }
+            (None, None) => anyhow::bail!("give the survey flight: --video FILE or --images DIR"),
+        }
+        c.source.timestamps = self.timestamps.clone();
+        if let Some(fps) = self.fps {
+            c.source.fps = fps;
+        }
+        c.attitude.kind = AttitudeKind::Log;
+        c.attitude.path = Some(self.log.clone());
+        c.attitude.time_offset_s = self.time_offset;
+        c.camera.calibration = Some(self.camera.clone());
+        c.landmarks.file = Some(self.landmarks.clone());
+        c.detector.classify_types = false;
+        if let Some(m) = &self.model {
+            c.detector.model = m.clone();
+        }
+        anyhow::ensure!(
+            self.min_height_px > 0.0 && (0.0..1.0).contains(&self.snap_iou) && self.every > 0,
+            "--min-height-px and --every must be positive and --snap-iou in [0, 1)"
+        );
+        let options = LabelOptions {
+            params: LabelParams {
+                min_height_px: self.min_height_px,
+                snap_iou: self.snap_iou,
+                ..LabelParams::default()
+            },
+            every: self.every,
+            snap: !self.no_snap,
+            one_class: self.one_class,
+            out: self.out.clone(),
+        };
+        let bar = towernav_eval::progress::bar(0, "frames");
+        let run = label_flight(&c, &options, |seq| bar.set_position(seq + 1))?;
+        bar.finish_and_clear();
+        println!(
+            "{} of {} frames labelled ({} without a GNSS fix around them): {} labels, {} snapped to the detector's boxes, {} towers dropped (report.csv says why); dataset in {}",
+            run.labelled_frames,
+            run.frames,
+            run.without_pose,
+            run.labels,
+            run.snapped,
+            run.dropped,
+            self.out.display()
+        );
+        Ok(())
+    }
+}

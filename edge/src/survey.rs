@@ -1,0 +1,312 @@
+//! `towernav-edge label`: a survey flight (video or images, a log with GNSS
+//! and attitude, the calibration, the landmarks) turned into a YOLO dataset.
+//! Each frame's pose is the log's GNSS and attitude at its time; every tower
+//! is projected into it (`towernav_core::survey_labels`), kept when in view,
+//! unhidden and tall enough, and snapped to the detector's box where they
+//! agree. Writes `images/`, `labels/`, `data.yaml` and `report.csv` (every
+//! tower in every labelled frame: projected box, snapped box, IoU, or why it
+//! was dropped).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use nalgebra::Point3;
+use towernav_core::survey_labels::{
+    Dropped, LabelParams, SurveyTower, TowerLabel, WIDTH_PER_HEIGHT, project_labels, snap,
+};
+use towernav_flightlog::{FlightLog, GnssSample};
+use towernav_geometry::{Datum, Geodetic, PinholeCamera, PixelBox, Pose, geoid_height_m};
+use towernav_protocol::LandmarkRecord;
+
+use crate::daemon::attitude::AttitudeSource;
+use crate::daemon::config::EdgeConfig;
+use crate::daemon::source::{image_size, video_size};
+use crate::edge_cmd::{check_log_covers, load_detector, open_attitude, open_source};
+
+/// What the labeller did.
+#[derive(Debug, Clone, Default)]
+pub struct LabelRun {
+    pub frames: u64,
+    pub labelled_frames: u64,
+    pub labels: usize,
+    pub snapped: usize,
+    pub dropped: usize,
+    /// Frames with no GNSS fix around them (no pose, no labels).
+    pub without_pose: u64,
+}
+
+/// Options beyond the config's source, log, camera, landmarks and detector.
+#[derive(Debug, Clone)]
+pub struct LabelOptions {
+    pub params: LabelParams,
+    /// Label every n-th frame.
+    pub every: u64,
+    /// Snap to the detector's boxes (off: projections only).
+    pub snap: bool,
+    /// One class, `tower`, instead of the database's types.
+    pub one_class: bool,
+    pub out: PathBuf,
+}
+
+/// The log's GNSS at `time_s` in `datum`'s ENU, linear between fixes at most 1 s apart.
+fn gnss_at(gnss: &[GnssSample], datum: &Datum, time_s: f64) -> Option<Point3<f64>> {
+    let i = gnss.partition_point(|g| g.time_s < time_s);
+    let after = gnss.get(i)?;
+    let before = if after.time_s == time_s {
+        after
+    } else {
+        gnss.get(i.checked_sub(1)?)?
+    };
+    if after.time_s - before.time_s > 1.0 {
+        return None;
+    }
+    let enu = |g: &GnssSample| -> Option<Point3<f64>> {
+        let h = g.alt_msl_m + geoid_height_m(g.lat_deg, g.lon_deg);
+        Some(datum.to_enu(&Geodetic::new(g.lat_deg, g.lon_deg, h).ok()?))
+    };
+    let (p0, p1) = (enu(before)?, enu(after)?);
+    let w = if after.time_s > before.time_s {
+        (time_s - before.time_s) / (after.time_s - before.time_s)
+    } else {
+        0.0
+    };
+    Some(p0 + (p1 - p0) * w)
+}
+
+fn survey_towers(records: &[LandmarkRecord], datum: &Datum) -> anyhow::Result<Vec<SurveyTower>> {
+    records
+        .iter()
+        .map(|r| {
+            let foot = Geodetic::new(r.lat_deg, r.lon_deg, r.ground_elev_m)
+                .with_context(|| format!("tower {}", r.id))?;
+            Ok(SurveyTower {
+                id: r.id.clone(),
+                tower_type: r.tower_type,
+                foot_in_world: datum.to_enu(&foot),
+                height_m: r.height_m,
+                width_m: r
+                    .base_width_m
+                    .unwrap_or(0.0)
+                    .max(WIDTH_PER_HEIGHT * r.height_m),
+            })
+        })
+        .collect()
+}
+
+/// Labels the survey flight `config` names into `options.out`.
+pub fn label_flight(
+    config: &EdgeConfig,
+    options: &LabelOptions,
+    mut progress: impl FnMut(u64),
+) -> anyhow::Result<LabelRun> {
+    let mut config = config.clone();
+    let path = config.source.path.clone().unwrap_or_default();
+    let (width, height) = match config.source.kind {
+        crate::daemon::config::SourceKind::Video => video_size(&path)?,
+        _ => image_size(Path::new(&path))?,
+    };
+    config.source.width = width;
+    config.source.height = height;
+    let source = open_source(&config)?;
+    let attitude = open_attitude(&config.attitude)?;
+    check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
+    let AttitudeSource::Log { log, offset_s } = attitude else {
+        anyhow::bail!("labels need a flight log with attitude and GNSS (--log)");
+    };
+    let FlightLog { gnss, .. } = &log;
+    let first = gnss
+        .first()
+        .context("the flight log has no GNSS: a survey flight needs it for the poses")?;
+    let datum = Datum::new(Geodetic::new(
+        first.lat_deg,
+        first.lon_deg,
+        first.alt_msl_m + geoid_height_m(first.lat_deg, first.lon_deg),
+    )?);
+    let camera = config.camera.camera(width, height)?;
+    let records = towernav_landmark_db::load_towers(
+        config
+            .landmarks
+            .file
+            .as_deref()
+            .context("labels need the landmarks (--landmarks)")?,
+    )?;
+    let towers = survey_towers(&records, &datum)?;
+    let mut detector = match options.snap {
+        true => load_detector(&config.detector)?.0,
+        false => None,
+    };
+    let classes = class_names(&towers, options.one_class);
+    let writer = DatasetWriter::create(&options.out, &classes)?;
+
+    let mut run = LabelRun::default();
+    let mut report = String::from(
+        "frame,tower_id,status,projected_left,projected_top,projected_right,projected_bottom,\
+         label_left,label_top,label_right,label_bottom,iou_with_projection,distance_m\n",
+    );
+    let mut source = source;
+    let every = options.every.max(1);
+    while let Some(frame) = source.next_frame() {
+        let frame = frame?;
+        run.frames += 1;
+        progress(frame.seq);
+        if frame.seq % every != 0 {
+            continue;
+        }
+        let t = frame.time_s + offset_s;
+        let (Some(attitude), Some(position), Some(image)) = (
+            log.attitude_at(t),
+            gnss_at(gnss, &datum, t),
+            frame.image.as_ref(),
+        ) else {
+            run.without_pose += 1;
+            continue;
+        };
+        let pose = Pose {
+            position_in_world: position,
+            attitude,
+        };
+        let mut labels = project_labels(&camera, &pose, &towers, &options.params);
+        if let Some(detector) = &mut detector {
+            let boxes: Vec<PixelBox> = detector
+                .detect(image, frame.seq)
+                .with_context(|| format!("the detector on frame {}", frame.seq))?
+                .into_iter()
+                .map(|d| d.bbox)
+                .collect();
+            snap(
+                &mut labels,
+                &boxes,
+                &options.params,
+                (f64::from(width), f64::from(height)),
+            );
+        }
+        let name = format!("frame_{:06}", frame.seq);
+        let kept = writer.write(&name, image, &labels, &towers, &classes, &camera)?;
+        run.labelled_frames += 1;
+        run.labels += kept;
+        for l in &labels {
+            run.snapped += usize::from(l.dropped.is_none() && l.snapped.is_some());
+            run.dropped += usize::from(l.dropped.is_some());
+            report_row(&mut report, &name, l, &towers);
+        }
+    }
+    let report_path = options.out.join("report.csv");
+    std::fs::write(&report_path, report)
+        .with_context(|| format!("writing {}", report_path.display()))?;
+    Ok(run)
+}
+
+fn class_names(towers: &[SurveyTower], one_class: bool) -> Vec<String> {
+    if one_class {
+        return vec!["tower".into()];
+    }
+    let mut names: Vec<String> = towers.iter().map(|t| t.tower_type.to_string()).collect();
+    names.sort();
+    names.dedup();
+    names
+}
+
+fn report_row(out: &mut String, frame: &str, l: &TowerLabel, towers: &[SurveyTower]) {
+    let p = &l.projected;
+    let status = match l.dropped {
+        None if l.snapped.is_some() => "snapped".to_string(),
+        None if l.shifted.is_some() => "shifted by the frame's offset".to_string(),
+        None => "projected".to_string(),
+        Some(Dropped::OutOfView) => "dropped: out of view".to_string(),
+        Some(Dropped::CutByFrame { in_frame }) => {
+            format!("dropped: {:.0} % in frame", 100.0 * in_frame)
+        }
+        Some(Dropped::TooSmall { height_px }) => format!("dropped: {height_px:.0} px tall"),
+        Some(Dropped::Hidden { covered }) => {
+            format!("dropped: {:.0} % behind nearer towers", 100.0 * covered)
+        }
+        Some(Dropped::Unconfirmed) => {
+            "dropped: at the frame's edge and no detector box agrees".into()
+        }
+    };
+    let (s, iou) = match l.snapped.or(l.shifted.map(|b| (b, l.projected.iou(&b)))) {
+        Some((b, iou)) => (
+            format!("{:.1},{:.1},{:.1},{:.1}", b.left, b.top, b.right, b.bottom),
+            format!("{iou:.3}"),
+        ),
+        None => (",,,".into(), String::new()),
+    };
+    let _ = writeln!(
+        out,
+        "{frame},{},{status},{:.1},{:.1},{:.1},{:.1},{s},{iou},{:.1}",
+        towers[l.tower].id, p.left, p.top, p.right, p.bottom, l.distance_m
+    );
+}
+
+/// A YOLO dataset on disk: `images/`, `labels/`, `data.yaml`.
+struct DatasetWriter {
+    images: PathBuf,
+    labels: PathBuf,
+}
+
+impl DatasetWriter {
+    fn create(out: &Path, classes: &[String]) -> anyhow::Result<Self> {
+        let images = out.join("images");
+        let labels = out.join("labels");
+        for dir in [&images, &labels] {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        }
+        let mut yaml = format!(
+            "# Labels projected from a survey flight (towernav-edge label).\npath: {}\ntrain: images\nval: images\nnames:\n",
+            std::path::absolute(out)
+                .unwrap_or_else(|_| out.to_path_buf())
+                .display()
+        );
+        for (i, c) in classes.iter().enumerate() {
+            let _ = writeln!(yaml, "  {i}: {c:?}");
+        }
+        let path = out.join("data.yaml");
+        std::fs::write(&path, yaml).with_context(|| format!("writing {}", path.display()))?;
+        Ok(Self { images, labels })
+    }
+
+    /// One frame and its label file; the number of labels written.
+    fn write(
+        &self,
+        name: &str,
+        image: &image::RgbImage,
+        labels: &[TowerLabel],
+        towers: &[SurveyTower],
+        classes: &[String],
+        camera: &PinholeCamera,
+    ) -> anyhow::Result<usize> {
+        let k = &camera.intrinsics;
+        let (w, h) = (f64::from(k.width), f64::from(k.height));
+        let mut text = String::new();
+        let mut n = 0;
+        for l in labels {
+            let Some(b) = l.label() else { continue };
+            let b = b.clipped(w, h);
+            let class = match classes.len() {
+                1 => 0,
+                _ => classes
+                    .iter()
+                    .position(|c| *c == towers[l.tower].tower_type.to_string())
+                    .unwrap_or(0),
+            };
+            let _ = writeln!(
+                text,
+                "{class} {:.6} {:.6} {:.6} {:.6}",
+                b.center_x() / w,
+                b.center_y() / h,
+                b.width() / w,
+                b.height() / h
+            );
+            n += 1;
+        }
+        let image_path = self.images.join(format!("{name}.jpg"));
+        image
+            .save(&image_path)
+            .with_context(|| format!("writing {}", image_path.display()))?;
+        let label_path = self.labels.join(format!("{name}.txt"));
+        std::fs::write(&label_path, text)
+            .with_context(|| format!("writing {}", label_path.display()))?;
+        Ok(n)
+    }
+}
