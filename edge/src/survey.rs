@@ -3,9 +3,12 @@
 //! Each frame's pose is the log's GNSS and attitude at its time; every tower
 //! is projected into it (`towernav_core::survey_labels`), kept when in view,
 //! unhidden and tall enough, and snapped to the detector's box where they
-//! agree. Writes `images/`, `labels/`, `data.yaml` and `report.csv` (every
-//! tower in every labelled frame: projected box, snapped box, IoU, or why it
-//! was dropped).
+//! agree. Writes `images/`, `labels/`, `data.yaml`, `report.csv` (every
+//! tower in every labelled frame: projected box, written box, IoU, or why it
+//! was dropped), `annotations.coco.json` (the same labels as COCO, which CVAT
+//! and Label Studio import for review) and `contact_sheet.png` (frames
+//! across the flight with their labels drawn: green snapped to the
+//! detector, amber projected).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -137,7 +140,7 @@ pub fn label_flight(
         false => None,
     };
     let classes = class_names(&towers, options.one_class);
-    let writer = DatasetWriter::create(&options.out, &classes)?;
+    let mut writer = DatasetWriter::create(&options.out, &classes)?;
 
     let mut run = LabelRun::default();
     let mut report = String::from(
@@ -191,6 +194,7 @@ pub fn label_flight(
             report_row(&mut report, &name, l, &towers);
         }
     }
+    writer.finish(&classes)?;
     let report_path = options.out.join("report.csv");
     std::fs::write(&report_path, report)
         .with_context(|| format!("writing {}", report_path.display()))?;
@@ -239,10 +243,37 @@ fn report_row(out: &mut String, frame: &str, l: &TowerLabel, towers: &[SurveyTow
     );
 }
 
-/// A YOLO dataset on disk: `images/`, `labels/`, `data.yaml`.
+/// A YOLO dataset on disk: `images/`, `labels/`, `data.yaml`; the COCO
+/// file and the contact sheet at the end.
 struct DatasetWriter {
+    out: PathBuf,
     images: PathBuf,
     labels: PathBuf,
+    coco_images: Vec<serde_json::Value>,
+    coco_annotations: Vec<serde_json::Value>,
+    tiles: Vec<image::RgbImage>,
+}
+
+/// Contact-sheet tiles: this wide, at most this many, this many a row.
+const TILE_WIDTH: u32 = 320;
+const SHEET_TILES: usize = 24;
+const SHEET_COLUMNS: usize = 4;
+
+/// A box's outline, `thickness` pixels, clipped to the image.
+fn draw_box(image: &mut image::RgbImage, b: &PixelBox, colour: [u8; 3], thickness: i64) {
+    let (w, h) = (i64::from(image.width()), i64::from(image.height()));
+    let (x0, y0, x1, y1) = (b.left as i64, b.top as i64, b.right as i64, b.bottom as i64);
+    for y in y0.max(0)..=y1.min(h - 1) {
+        for x in x0.max(0)..=x1.min(w - 1) {
+            let edge = x - x0 < thickness
+                || x1 - x < thickness
+                || y - y0 < thickness
+                || y1 - y < thickness;
+            if edge {
+                image.put_pixel(x as u32, y as u32, image::Rgb(colour));
+            }
+        }
+    }
 }
 
 impl DatasetWriter {
@@ -263,12 +294,54 @@ impl DatasetWriter {
         }
         let path = out.join("data.yaml");
         std::fs::write(&path, yaml).with_context(|| format!("writing {}", path.display()))?;
-        Ok(Self { images, labels })
+        Ok(Self {
+            out: out.to_path_buf(),
+            images,
+            labels,
+            coco_images: Vec::new(),
+            coco_annotations: Vec::new(),
+            tiles: Vec::new(),
+        })
+    }
+
+    /// `annotations.coco.json` and `contact_sheet.png`.
+    fn finish(&self, classes: &[String]) -> anyhow::Result<()> {
+        let categories: Vec<serde_json::Value> = classes
+            .iter()
+            .enumerate()
+            .map(|(i, c)| serde_json::json!({ "id": i + 1, "name": c, "supercategory": "tower" }))
+            .collect();
+        let coco = serde_json::json!({
+            "info": { "description": "Labels projected from a survey flight (towernav-edge label)" },
+            "images": self.coco_images,
+            "annotations": self.coco_annotations,
+            "categories": categories,
+        });
+        let path = self.out.join("annotations.coco.json");
+        std::fs::write(&path, serde_json::to_string_pretty(&coco)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        if self.tiles.is_empty() {
+            return Ok(());
+        }
+        let step = self.tiles.len().div_ceil(SHEET_TILES);
+        let chosen: Vec<&image::RgbImage> = self.tiles.iter().step_by(step).collect();
+        let (tw, th) = chosen[0].dimensions();
+        let rows = chosen.len().div_ceil(SHEET_COLUMNS) as u32;
+        let cols = chosen.len().min(SHEET_COLUMNS) as u32;
+        let mut sheet = image::RgbImage::new(cols * tw, rows * th);
+        for (i, tile) in chosen.iter().enumerate() {
+            let (c, r) = ((i % SHEET_COLUMNS) as i64, (i / SHEET_COLUMNS) as i64);
+            image::imageops::replace(&mut sheet, *tile, c * i64::from(tw), r * i64::from(th));
+        }
+        let path = self.out.join("contact_sheet.png");
+        sheet
+            .save(&path)
+            .with_context(|| format!("writing {}", path.display()))
     }
 
     /// One frame and its label file; the number of labels written.
     fn write(
-        &self,
+        &mut self,
         name: &str,
         image: &image::RgbImage,
         labels: &[TowerLabel],
@@ -280,9 +353,20 @@ impl DatasetWriter {
         let (w, h) = (f64::from(k.width), f64::from(k.height));
         let mut text = String::new();
         let mut n = 0;
+        let image_id = self.coco_images.len() + 1;
+        self.coco_images.push(serde_json::json!({
+            "id": image_id, "file_name": format!("{name}.jpg"), "width": k.width, "height": k.height,
+        }));
+        let mut drawn = image.clone();
         for l in labels {
             let Some(b) = l.label() else { continue };
             let b = b.clipped(w, h);
+            let colour = if l.snapped.is_some() {
+                [40, 220, 80]
+            } else {
+                [255, 180, 0]
+            };
+            draw_box(&mut drawn, &b, colour, 3);
             let class = match classes.len() {
                 1 => 0,
                 _ => classes
@@ -298,8 +382,23 @@ impl DatasetWriter {
                 b.width() / w,
                 b.height() / h
             );
+            self.coco_annotations.push(serde_json::json!({
+                "id": self.coco_annotations.len() + 1,
+                "image_id": image_id,
+                "category_id": class + 1,
+                "bbox": [b.left, b.top, b.width(), b.height()],
+                "area": b.area(),
+                "iscrowd": 0,
+            }));
             n += 1;
         }
+        let th = (f64::from(TILE_WIDTH) * h / w).round().max(1.0) as u32;
+        self.tiles.push(image::imageops::resize(
+            &drawn,
+            TILE_WIDTH,
+            th,
+            image::imageops::FilterType::Triangle,
+        ));
         let image_path = self.images.join(format!("{name}.jpg"));
         image
             .save(&image_path)

@@ -564,4 +564,21 @@ fn a_survey_flight_labels_its_towers_where_the_truth_has_them() {
         .count();
     assert_eq!(label_files, images);
     assert_eq!(images, frames.len());
+    // The same labels as COCO for review tools, and the contact sheet.
+    let coco: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(labels.join("annotations.coco.json")).expect("COCO file"),
+    )
+    .expect("JSON");
+    assert_eq!(coco["images"].as_array().map(Vec::len), Some(images));
+    assert_eq!(
+        coco["annotations"].as_array().map(Vec::len),
+        Some(labelled.len())
+    );
+    let first = &coco["annotations"][0];
+    assert!(
+        first["bbox"].as_array().is_some_and(|b| b.len() == 4)
+            && first["category_id"].as_u64() >= Some(1)
+    );
+    let sheet = image::image_dimensions(labels.join("contact_sheet.png")).expect("contact sheet");
+    assert!(sheet.0 >= 1000, "{sheet:?}");
 }
