@@ -6,6 +6,7 @@
 //! Behind the `demo` feature: the simulated source, the demo's pose collector
 //! and report, and the eval commands.
 
+pub mod coco_import;
 pub mod daemon;
 pub mod edge_cmd;
 pub mod error;

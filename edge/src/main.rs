@@ -41,6 +41,11 @@ enum Command {
     /// as a YOLO dataset with a report of every label.
     #[cfg(feature = "demo")]
     Label(cli::label_command::LabelArgs),
+    /// Reviewed labels back from COCO JSON (CVAT, Label Studio) into a
+    /// labelled dataset's YOLO files.
+    #[cfg(feature = "demo")]
+    #[command(name = "label-import")]
+    LabelImport(cli::label_command::LabelImportArgs),
     #[cfg(feature = "demo")]
     #[command(flatten)]
     Eval(cli::eval_command::EvalCommand),
@@ -66,6 +71,8 @@ fn main() -> anyhow::Result<()> {
         Command::Replay(replay) => return replay.run(),
         #[cfg(feature = "demo")]
         Command::Label(label) => return label.run(),
+        #[cfg(feature = "demo")]
+        Command::LabelImport(import) => return import.run(),
         Command::Run(args) => (args, false),
         Command::Demo(args) => (args, true),
     };

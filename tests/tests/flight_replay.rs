@@ -581,4 +581,43 @@ fn a_survey_flight_labels_its_towers_where_the_truth_has_them() {
     );
     let sheet = image::image_dimensions(labels.join("contact_sheet.png")).expect("contact sheet");
     assert!(sheet.0 >= 1000, "{sheet:?}");
+
+    // Reviewed in a COCO tool and imported back: the same YOLO lines.
+    let reimported = out.path().join("reimported");
+    ok(
+        "towernav-edge",
+        &[
+            "label-import",
+            "--coco",
+            s(&labels.join("annotations.coco.json")),
+            "--out",
+            s(&reimported),
+        ],
+    );
+    let read = |dir: &Path| -> Vec<Vec<f64>> {
+        let mut names: Vec<_> = std::fs::read_dir(dir.join("labels"))
+            .expect("labels/")
+            .map(|e| e.expect("entry").path())
+            .collect();
+        names.sort();
+        names
+            .iter()
+            .flat_map(|p| {
+                std::fs::read_to_string(p)
+                    .expect("label file")
+                    .lines()
+                    .map(String::from)
+                    .collect::<Vec<_>>()
+            })
+            .map(|l| l.split(' ').map(|v| v.parse().expect("a number")).collect())
+            .collect()
+    };
+    let (before, after) = (read(&labels), read(&reimported));
+    assert_eq!(before.len(), after.len());
+    for (a, b) in before.iter().zip(&after) {
+        assert!(
+            a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5),
+            "{a:?} against {b:?}"
+        );
+    }
 }

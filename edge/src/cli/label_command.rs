@@ -118,3 +118,51 @@ impl LabelArgs {
         Ok(())
     }
 }
+
+/// Reviewed labels back from COCO JSON (CVAT, Label Studio) into a YOLO
+/// dataset's `labels/` and `data.yaml`, beside its `images/`.
+#[derive(Args)]
+pub struct LabelImportArgs {
+    /// The COCO JSON export.
+    #[arg(long)]
+    coco: PathBuf,
+    /// The dataset folder (`towernav-edge label`'s --out).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+impl LabelImportArgs {
+    pub fn run(&self) -> anyhow::Result<()> {
+        use anyhow::Context;
+        let text = std::fs::read_to_string(&self.coco)
+            .with_context(|| format!("reading {}", self.coco.display()))?;
+        let yolo =
+            towernav_edge::coco_import::yolo_from_coco(&text, &self.coco.display().to_string())?;
+        let labels = self.out.join("labels");
+        std::fs::create_dir_all(&labels)
+            .with_context(|| format!("creating {}", labels.display()))?;
+        for (stem, lines) in &yolo.files {
+            let path = labels.join(format!("{stem}.txt"));
+            std::fs::write(&path, lines).with_context(|| format!("writing {}", path.display()))?;
+        }
+        let mut yaml = format!(
+            "# Labels reviewed and imported from {}.\npath: {}\ntrain: images\nval: images\nnames:\n",
+            self.coco.display(),
+            std::path::absolute(&self.out)
+                .unwrap_or_else(|_| self.out.clone())
+                .display()
+        );
+        for (i, name) in yolo.names.iter().enumerate() {
+            yaml.push_str(&format!("  {i}: {name:?}\n"));
+        }
+        let path = self.out.join("data.yaml");
+        std::fs::write(&path, yaml).with_context(|| format!("writing {}", path.display()))?;
+        println!(
+            "{} label files, classes {:?}, into {}",
+            yolo.files.len(),
+            yolo.names,
+            labels.display()
+        );
+        Ok(())
+    }
+}
