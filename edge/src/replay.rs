@@ -63,6 +63,37 @@ fn recorded_size(config: &EdgeConfig) -> anyhow::Result<(u32, u32)> {
     }
 }
 
+/// A recording opened with its flight log: the config with the frames'
+/// recorded size, the frame source, the log, and the camera-to-log offset.
+/// Frames the log does not cover are refused here.
+pub(crate) struct Recording {
+    pub config: EdgeConfig,
+    pub source: Box<dyn FrameSource>,
+    pub log: FlightLog,
+    pub offset_s: f64,
+}
+
+impl Recording {
+    pub(crate) fn open(config: &EdgeConfig) -> anyhow::Result<Self> {
+        let mut config = config.clone();
+        let (width, height) = recorded_size(&config)?;
+        config.source.width = width;
+        config.source.height = height;
+        let source = open_source(&config)?;
+        let attitude = open_attitude(&config.attitude)?;
+        check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
+        let AttitudeSource::Log { log, offset_s } = attitude else {
+            anyhow::bail!("a recording takes its attitude from a flight log (--log)");
+        };
+        Ok(Self {
+            config,
+            source,
+            log,
+            offset_s,
+        })
+    }
+}
+
 /// The start: `pipeline.takeoff`, else the log's GNSS at the first frame,
 /// its height above mean sea level turned into the ellipsoid's.
 fn start_of(
@@ -103,17 +134,13 @@ pub fn replay(config: &EdgeConfig, mut progress: impl FnMut(u64)) -> anyhow::Res
         config.attitude.path.is_some(),
         "a replay needs the flight log (--log)"
     );
-    let mut config = config.clone();
-    let (width, height) = recorded_size(&config)?;
-    config.source.width = width;
-    config.source.height = height;
-    // Validated once the start is known; the source and log first, for their own errors.
-    let source = open_source(&config)?;
-    let attitude = open_attitude(&config.attitude)?;
-    check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
-    let AttitudeSource::Log { log, offset_s } = attitude else {
-        anyhow::bail!("a replay takes its attitude from a flight log (--log)");
-    };
+    let Recording {
+        mut config,
+        source,
+        log,
+        offset_s,
+    } = Recording::open(config)?;
+    let (width, height) = (config.source.width, config.source.height);
     let first_s = source.span_s().map_or(0.0, |s| s.0);
     let (takeoff, start) = start_of(&config, &log, first_s + offset_s)?;
     config.pipeline.takeoff = Some(takeoff);

@@ -22,10 +22,9 @@ use towernav_flightlog::{FlightLog, GnssSample};
 use towernav_geometry::{Datum, Geodetic, PinholeCamera, PixelBox, Pose, geoid_height_m};
 use towernav_protocol::LandmarkRecord;
 
-use crate::daemon::attitude::AttitudeSource;
 use crate::daemon::config::EdgeConfig;
-use crate::daemon::source::{image_size, video_size};
-use crate::edge_cmd::{check_log_covers, load_detector, open_attitude, open_source};
+use crate::edge_cmd::load_detector;
+use crate::replay::Recording;
 
 /// What the labeller did.
 #[derive(Debug, Clone, Default)]
@@ -103,20 +102,13 @@ pub fn label_flight(
     options: &LabelOptions,
     mut progress: impl FnMut(u64),
 ) -> anyhow::Result<LabelRun> {
-    let mut config = config.clone();
-    let path = config.source.path.clone().unwrap_or_default();
-    let (width, height) = match config.source.kind {
-        crate::daemon::config::SourceKind::Video => video_size(&path)?,
-        _ => image_size(Path::new(&path))?,
-    };
-    config.source.width = width;
-    config.source.height = height;
-    let source = open_source(&config)?;
-    let attitude = open_attitude(&config.attitude)?;
-    check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
-    let AttitudeSource::Log { log, offset_s } = attitude else {
-        anyhow::bail!("labels need a flight log with attitude and GNSS (--log)");
-    };
+    let Recording {
+        config,
+        source,
+        log,
+        offset_s,
+    } = Recording::open(config)?;
+    let (width, height) = (config.source.width, config.source.height);
     let FlightLog { gnss, .. } = &log;
     let first = gnss
         .first()

@@ -4,39 +4,22 @@ use std::path::PathBuf;
 
 use clap::Args;
 use towernav_core::survey_labels::LabelParams;
-use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig, SourceKind};
+use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig};
 use towernav_edge::survey::{LabelOptions, label_flight};
+
+use crate::cli::recording_args::RecordingArgs;
 
 /// A survey flight (GNSS still working) into a YOLO dataset: every tower in
 /// the landmarks projected into every `--every`-th frame by the log's GNSS
 /// and attitude, and snapped to the detector's box where they agree.
 #[derive(Args)]
 pub struct LabelArgs {
-    /// The camera's video.
-    #[arg(long, conflicts_with = "images")]
-    video: Option<PathBuf>,
-    /// A folder of the camera's images, in name order.
-    #[arg(long)]
-    images: Option<PathBuf>,
-    /// How frames are timed: pts, rate (with --fps), names, names_ms,
-    /// names_us, names_ns, or a timestamps file.
-    #[arg(long)]
-    timestamps: Option<String>,
-    #[arg(long)]
-    fps: Option<f64>,
+    #[command(flatten)]
+    recording: RecordingArgs,
     /// The flight log with attitude and GNSS: ArduPilot .bin, MAVLink .tlog,
     /// PX4 .ulg or CSV.
     #[arg(long)]
     log: PathBuf,
-    /// Seconds from the camera's clock to the log's.
-    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
-    time_offset: f64,
-    /// The camera's calibration: OpenCV YAML/JSON, ROS camera_info or Kalibr.
-    #[arg(long)]
-    camera: PathBuf,
-    /// The towers: a landmark CSV or database.
-    #[arg(long)]
-    landmarks: PathBuf,
     /// Label every n-th frame.
     #[arg(long, default_value_t = 5)]
     every: u64,
@@ -62,27 +45,19 @@ pub struct LabelArgs {
 
 impl LabelArgs {
     pub fn run(&self) -> anyhow::Result<()> {
+        let r = &self.recording;
+        anyhow::ensure!(
+            r.video.is_some() || r.images.is_some(),
+            "give the survey flight: --video FILE or --images DIR"
+        );
+        anyhow::ensure!(
+            r.camera.is_some() && r.landmarks.is_some(),
+            "labels need the calibration (--camera) and the towers (--landmarks)"
+        );
         let mut c = EdgeConfig::default();
-        match (&self.video, &self.images) {
-            (Some(v), _) => {
-                c.source.kind = SourceKind::Video;
-                c.source.path = Some(v.display().to_string());
-            }
-            (None, Some(i)) => {
-                c.source.kind = SourceKind::Images;
-                c.source.path = Some(i.display().to_string());
-            }
-            (None, None) => anyhow::bail!("give the survey flight: --video FILE or --images DIR"),
-        }
-        c.source.timestamps = self.timestamps.clone();
-        if let Some(fps) = self.fps {
-            c.source.fps = fps;
-        }
+        r.apply(&mut c);
         c.attitude.kind = AttitudeKind::Log;
         c.attitude.path = Some(self.log.clone());
-        c.attitude.time_offset_s = self.time_offset;
-        c.camera.calibration = Some(self.camera.clone());
-        c.landmarks.file = Some(self.landmarks.clone());
         c.detector.classify_types = false;
         if let Some(m) = &self.model {
             c.detector.model = m.clone();

@@ -7,5 +7,7 @@ pub mod eval_command;
 #[cfg(feature = "demo")]
 pub mod label_command;
 #[cfg(feature = "demo")]
+pub mod recording_args;
+#[cfg(feature = "demo")]
 pub mod replay_command;
 pub mod run_args;

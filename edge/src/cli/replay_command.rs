@@ -14,6 +14,8 @@ use towernav_eval::cmd::demo_plots::{ErrorPoint, write_track_and_error};
 use towernav_eval::gnss_score::{ReferenceFix, ReplayEstimate, ReplayScore, score};
 use towernav_geometry::Geodetic;
 
+use crate::cli::recording_args::RecordingArgs;
+
 /// Flags override `--config` (an edge config, such as the simulator's
 /// `replay.toml`), which overrides the daemon's defaults.
 #[derive(Args)]
@@ -21,33 +23,11 @@ pub struct ReplayArgs {
     /// An edge config file to start from.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// The camera's video (anything ffmpeg reads); frames are timed by its
-    /// presentation timestamps.
-    #[arg(long, conflicts_with = "images")]
-    video: Option<PathBuf>,
-    /// A folder of the camera's images, in name order.
-    #[arg(long)]
-    images: Option<PathBuf>,
-    /// How frames are timed: pts, rate (with --fps), names, names_ms,
-    /// names_us, names_ns, or a timestamps file.
-    #[arg(long)]
-    timestamps: Option<String>,
-    /// The frame rate, for --timestamps rate.
-    #[arg(long)]
-    fps: Option<f64>,
+    #[command(flatten)]
+    recording: RecordingArgs,
     /// The flight log: ArduPilot .bin, MAVLink .tlog, PX4 .ulg or CSV.
     #[arg(long)]
     log: Option<PathBuf>,
-    /// Seconds from the camera's clock to the log's: a frame at camera time t
-    /// takes the log's attitude at t + offset.
-    #[arg(long, allow_hyphen_values = true)]
-    time_offset: Option<f64>,
-    /// The camera's calibration: OpenCV YAML/JSON, ROS camera_info or Kalibr.
-    #[arg(long)]
-    camera: Option<PathBuf>,
-    /// The towers: a landmark CSV or database.
-    #[arg(long)]
-    landmarks: Option<PathBuf>,
     /// Where the replay starts, lat_deg,lon_deg,alt_m (ellipsoid); default:
     /// the log's GNSS at the first frame.
     #[arg(long, value_parser = lat_lon_alt, allow_hyphen_values = true)]
@@ -82,32 +62,10 @@ impl ReplayArgs {
             Some(path) => EdgeConfig::read(path)?,
             None => EdgeConfig::default(),
         };
-        if let Some(v) = &self.video {
-            c.source.kind = SourceKind::Video;
-            c.source.path = Some(v.display().to_string());
-        }
-        if let Some(v) = &self.images {
-            c.source.kind = SourceKind::Images;
-            c.source.path = Some(v.display().to_string());
-        }
-        if let Some(v) = &self.timestamps {
-            c.source.timestamps = Some(v.clone());
-        }
-        if let Some(v) = self.fps {
-            c.source.fps = v;
-        }
+        self.recording.apply(&mut c);
         if let Some(v) = &self.log {
             c.attitude.kind = AttitudeKind::Log;
             c.attitude.path = Some(v.clone());
-        }
-        if let Some(v) = self.time_offset {
-            c.attitude.time_offset_s = v;
-        }
-        if let Some(v) = &self.camera {
-            c.camera.calibration = Some(v.clone());
-        }
-        if let Some(v) = &self.landmarks {
-            c.landmarks.file = Some(v.clone());
         }
         if let Some(t) = self.takeoff {
             c.pipeline.takeoff = Some(t);

@@ -1,0 +1,63 @@
+//! The flags that name a recorded flight, shared by `replay` and `label`.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use towernav_edge::daemon::config::{EdgeConfig, SourceKind};
+
+#[derive(Args)]
+pub struct RecordingArgs {
+    /// The camera's video (anything ffmpeg reads); frames are timed by its
+    /// presentation timestamps.
+    #[arg(long, conflicts_with = "images")]
+    pub video: Option<PathBuf>,
+    /// A folder of the camera's images, in name order.
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+    /// How frames are timed: pts, rate (with --fps), names, names_ms,
+    /// names_us, names_ns, or a timestamps file.
+    #[arg(long)]
+    pub timestamps: Option<String>,
+    /// The frame rate, for --timestamps rate.
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Seconds from the camera's clock to the log's: a frame at camera time t
+    /// takes the log's attitude at t + offset.
+    #[arg(long, allow_hyphen_values = true)]
+    pub time_offset: Option<f64>,
+    /// The camera's calibration: OpenCV YAML/JSON, ROS camera_info or Kalibr.
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+    /// The towers: a landmark CSV or database.
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+}
+
+impl RecordingArgs {
+    /// These flags over `c`.
+    pub fn apply(&self, c: &mut EdgeConfig) {
+        if let Some(v) = &self.video {
+            c.source.kind = SourceKind::Video;
+            c.source.path = Some(v.display().to_string());
+        }
+        if let Some(v) = &self.images {
+            c.source.kind = SourceKind::Images;
+            c.source.path = Some(v.display().to_string());
+        }
+        if let Some(v) = &self.timestamps {
+            c.source.timestamps = Some(v.clone());
+        }
+        if let Some(v) = self.fps {
+            c.source.fps = v;
+        }
+        if let Some(v) = self.time_offset {
+            c.attitude.time_offset_s = v;
+        }
+        if let Some(v) = &self.camera {
+            c.camera.calibration = Some(v.clone());
+        }
+        if let Some(v) = &self.landmarks {
+            c.landmarks.file = Some(v.clone());
+        }
+    }
+}
