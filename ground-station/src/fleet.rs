@@ -13,6 +13,10 @@ pub use crate::events::NetEvent;
 pub const TRAIL_LEN: usize = 5000;
 /// A UAV whose last pose is older than this is stale.
 pub const STALE_AFTER_S: f64 = 2.0;
+/// A trail point that ends one stretch: the next pose came after a silence
+/// of more than [`STALE_AFTER_S`] or from a restarted edge (its frame count
+/// went back), and no line may join the two.
+pub const TRAIL_BREAK: [f64; 2] = [f64::NAN, f64::NAN];
 /// Track reports kept per UAV (three seconds at 30 Hz), to match a preview's frame.
 const RECENT_TRACKS: usize = 90;
 /// The window the pose rate is counted over.
@@ -25,7 +29,8 @@ pub struct UavView {
     pub last_pose_at_s: Option<f64>,
     /// Arrival times of the poses in the last few seconds, for the rate.
     pose_arrivals: VecDeque<f64>,
-    /// East/north in the ground station's map frame.
+    /// East/north in the ground station's map frame; [`TRAIL_BREAK`] between
+    /// stretches.
     pub trail: VecDeque<[f64; 2]>,
     /// The simulator's truth, east/north in the map frame.
     pub truth_trail: VecDeque<[f64; 2]>,
@@ -107,6 +112,13 @@ impl Fleet {
             NetEvent::Pose(p) => {
                 let en = self.en(p.lat_deg, p.lon_deg, p.alt_m);
                 let view = self.uavs.entry(p.uav.clone()).or_default();
+                let silent = view
+                    .last_pose_at_s
+                    .is_some_and(|t| now_s - t > STALE_AFTER_S);
+                let restarted = view.last_pose.as_ref().is_some_and(|l| p.seq < l.seq);
+                if (silent || restarted) && !view.trail.is_empty() {
+                    push_bounded(&mut view.trail, TRAIL_BREAK);
+                }
                 push_bounded(&mut view.trail, en);
                 view.pose_arrivals.push_back(now_s);
                 while view
@@ -175,6 +187,32 @@ mod tests {
             lon_deg: 114.36,
             height_m: 25.0,
         }))
+    }
+
+    #[test]
+    fn a_silence_or_a_restarted_edge_breaks_the_trail() {
+        let mut fleet = fleet();
+        let uav = NodeId::new("uav1").expect("valid");
+        let at = |i: u32| pose("uav1", 30.52, 114.36 + 1e-5 * f64::from(i), u64::from(i));
+        for i in 0..5 {
+            fleet.apply(NetEvent::Pose(at(i)), f64::from(i) * 0.1);
+        }
+        // Ten seconds of silence, then the same flight goes on.
+        fleet.apply(NetEvent::Pose(at(5)), 10.5);
+        // The edge restarts: its frame count starts again.
+        fleet.apply(NetEvent::Pose(at(1)), 10.6);
+        let trail = &fleet.uavs[&uav].trail;
+        let breaks: Vec<usize> = trail
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p[0].is_nan())
+            .map(|(i, _)| i)
+            .collect();
+        assert_eq!(breaks, vec![5, 7], "{trail:?}");
+        assert!(
+            !trail.back().expect("points")[0].is_nan(),
+            "the newest point is a place"
+        );
     }
 
     #[test]

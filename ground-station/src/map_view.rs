@@ -199,6 +199,26 @@ pub fn thinned(points: &std::collections::VecDeque<[f64; 2]>) -> Vec<[f64; 2]> {
     out
 }
 
+/// A trail's stretches between breaks (edge restarts, silences), each
+/// thinned; no line is drawn across a break.
+pub fn stretches(trail: &std::collections::VecDeque<[f64; 2]>) -> Vec<Vec<[f64; 2]>> {
+    let mut out = Vec::new();
+    let mut current = std::collections::VecDeque::new();
+    for p in trail {
+        if p[0].is_nan() || p[1].is_nan() {
+            if !current.is_empty() {
+                out.push(thinned(&std::mem::take(&mut current)));
+            }
+        } else {
+            current.push_back(*p);
+        }
+    }
+    if !current.is_empty() {
+        out.push(thinned(&current));
+    }
+    out
+}
+
 fn draw_fleet(
     plot: &mut PlotUi<'_>,
     fleet: &Fleet,
@@ -219,11 +239,9 @@ fn draw_fleet(
             continue;
         };
         let width = if selected == Some(uav) { 2.5 } else { 1.5 };
-        plot.line(
-            Line::new(uav.as_str(), thinned(&view.trail))
-                .color(color)
-                .width(width),
-        );
+        for stretch in stretches(&view.trail) {
+            plot.line(Line::new(uav.as_str(), stretch).color(color).width(width));
+        }
         if let Some(p) = &view.last_pose {
             let cov = [
                 [p.covariance[0][0], p.covariance[0][1]],
@@ -273,6 +291,19 @@ mod tests {
         let short: std::collections::VecDeque<[f64; 2]> =
             (0..10).map(|i| [f64::from(i), 1.0]).collect();
         assert_eq!(thinned(&short).len(), 10);
+    }
+
+    #[test]
+    fn a_break_in_a_trail_splits_it_into_stretches_drawn_apart() {
+        let mut trail: std::collections::VecDeque<[f64; 2]> =
+            (0..3).map(|i| [f64::from(i), 0.0]).collect();
+        trail.push_back(crate::fleet::TRAIL_BREAK);
+        trail.extend((0..2).map(|i| [500.0 + f64::from(i), 0.0]));
+        let parts = stretches(&trail);
+        assert_eq!(parts.len(), 2);
+        assert_eq!(parts[0].last(), Some(&[2.0, 0.0]));
+        assert_eq!(parts[1].first(), Some(&[500.0, 0.0]));
+        assert!(parts.iter().flatten().all(|p| p[0].is_finite()));
     }
 
     #[test]
