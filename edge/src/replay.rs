@@ -124,8 +124,11 @@ fn start_of(
 
 /// Replays the recording `config` names (source, attitude log, camera,
 /// landmarks, detector) through the pipeline. `progress` gets each frame's
-/// sequence number.
-pub fn replay(config: &EdgeConfig, mut progress: impl FnMut(u64)) -> anyhow::Result<ReplayRun> {
+/// sequence number and the recording's frame count when known.
+pub fn replay(
+    config: &EdgeConfig,
+    mut progress: impl FnMut(u64, Option<u64>),
+) -> anyhow::Result<ReplayRun> {
     anyhow::ensure!(
         matches!(config.attitude.kind, AttitudeKind::Log | AttitudeKind::Csv),
         "a replay takes its attitude from a flight log (--log)"
@@ -188,13 +191,14 @@ pub fn replay(config: &EdgeConfig, mut progress: impl FnMut(u64)) -> anyhow::Res
     };
     let max_frames = config.source.max_frames.unwrap_or(u64::MAX);
     let mut source: Box<dyn FrameSource> = source;
+    let total = source.frame_count();
     while run.frames < max_frames {
         let Some(frame) = source.next_frame() else {
             break;
         };
         let frame = frame?;
         run.frames += 1;
-        progress(frame.seq);
+        progress(frame.seq, total);
         let log_time_s = frame.time_s + offset_s;
         let (Some(attitude), Some(image)) = (log.attitude_at(log_time_s), frame.image.as_ref())
         else {

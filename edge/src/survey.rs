@@ -100,7 +100,7 @@ fn survey_towers(records: &[LandmarkRecord], datum: &Datum) -> anyhow::Result<Ve
 pub fn label_flight(
     config: &EdgeConfig,
     options: &LabelOptions,
-    mut progress: impl FnMut(u64),
+    mut progress: impl FnMut(u64, Option<u64>),
 ) -> anyhow::Result<LabelRun> {
     let Recording {
         config,
@@ -140,11 +140,12 @@ pub fn label_flight(
          label_left,label_top,label_right,label_bottom,iou_with_projection,distance_m\n",
     );
     let mut source = source;
+    let total = source.frame_count();
     let every = options.every.max(1);
     while let Some(frame) = source.next_frame() {
         let frame = frame?;
         run.frames += 1;
-        progress(frame.seq);
+        progress(frame.seq, total);
         if frame.seq % every != 0 {
             continue;
         }

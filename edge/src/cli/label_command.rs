@@ -78,7 +78,12 @@ impl LabelArgs {
             out: self.out.clone(),
         };
         let bar = towernav_eval::progress::bar(0, "frames");
-        let run = label_flight(&c, &options, |seq| bar.set_position(seq + 1))?;
+        let run = label_flight(&c, &options, |seq, total| {
+            if let Some(n) = total {
+                bar.set_length(n);
+            }
+            bar.set_position(seq + 1);
+        })?;
         bar.finish_and_clear();
         println!(
             "{} of {} frames labelled ({} without a GNSS fix around them): {} labels, {} snapped to the detector's boxes, {} towers dropped (report.csv says why); dataset in {}",

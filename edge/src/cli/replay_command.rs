@@ -89,7 +89,12 @@ impl ReplayArgs {
     pub fn run(&self) -> anyhow::Result<()> {
         let config = self.config()?;
         let bar = towernav_eval::progress::bar(0, "frames");
-        let run = replay(&config, |seq| bar.set_position(seq + 1))?;
+        let run = replay(&config, |seq, total| {
+            if let Some(n) = total {
+                bar.set_length(n);
+            }
+            bar.set_position(seq + 1);
+        })?;
         bar.finish_and_clear();
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("creating {}", self.out.display()))?;

@@ -57,6 +57,10 @@ pub trait FrameSource: Send {
     fn span_s(&self) -> Option<(f64, f64)> {
         None
     }
+    /// How many frames a recording holds, when known before they are read.
+    fn frame_count(&self) -> Option<u64> {
+        None
+    }
 }
 
 /// A folder of images (PNG, JPEG), in file-name order, each at its time.
@@ -155,6 +159,10 @@ impl FrameSource for ImageFolderSource {
 
     fn span_s(&self) -> Option<(f64, f64)> {
         Some((*self.times.first()?, *self.times.last()?))
+    }
+
+    fn frame_count(&self) -> Option<u64> {
+        Some(self.files.len() as u64)
     }
 }
 
@@ -372,6 +380,10 @@ impl FrameSource for FfmpegSource {
     fn span_s(&self) -> Option<(f64, f64)> {
         let pts = self.pts.as_ref()?;
         Some((*pts.first()?, *pts.last()?))
+    }
+
+    fn frame_count(&self) -> Option<u64> {
+        self.pts.as_ref().map(|p| p.len() as u64)
     }
 }
 
