@@ -131,6 +131,23 @@ fn project(
     Some((b?, depth, middle))
 }
 
+/// A camera as the labeller uses it: with the part of the ideal image its
+/// frame sees, found once (it takes a hundred undistortions).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LabelCamera {
+    pub camera: PinholeCamera,
+    seen: PixelBox,
+}
+
+impl LabelCamera {
+    pub fn new(camera: PinholeCamera) -> Self {
+        Self {
+            seen: seen_in_ideal(&camera),
+            camera,
+        }
+    }
+}
+
 /// The part of the ideal image that the real frame sees: the box around
 /// its undistorted border.
 fn seen_in_ideal(camera: &PinholeCamera) -> PixelBox {
@@ -153,14 +170,14 @@ fn seen_in_ideal(camera: &PinholeCamera) -> PixelBox {
 /// Every tower's label in one frame seen from `pose`, with the reason for
 /// each one dropped.
 pub fn project_labels(
-    camera: &PinholeCamera,
+    labeller: &LabelCamera,
     pose: &Pose,
     towers: &[SurveyTower],
     params: &LabelParams,
 ) -> Vec<TowerLabel> {
+    let (camera, seen) = (&labeller.camera, labeller.seen);
     let k = &camera.intrinsics;
     let (w, h) = (f64::from(k.width), f64::from(k.height));
-    let seen = seen_in_ideal(camera);
     let mut labels: Vec<TowerLabel> = towers
         .iter()
         .enumerate()
@@ -381,7 +398,12 @@ mod tests {
             tower("hidden", 0.5, 300.0),
             tower("aside", 400.0, 100.0),
         ];
-        let labels = project_labels(&camera, &pose, &towers, &LabelParams::default());
+        let labels = project_labels(
+            &LabelCamera::new(camera),
+            &pose,
+            &towers,
+            &LabelParams::default(),
+        );
         let of = |id: &str| labels.iter().find(|l| towers[l.tower].id == id);
         let ahead = of("ahead").expect("labelled");
         assert!(ahead.dropped.is_none());
@@ -412,7 +434,12 @@ mod tests {
     fn a_label_takes_the_detector_s_box_where_they_agree() {
         let (camera, pose) = setup();
         let towers = [tower("ahead", 0.0, 100.0), tower("left", -40.0, 120.0)];
-        let mut labels = project_labels(&camera, &pose, &towers, &LabelParams::default());
+        let mut labels = project_labels(
+            &LabelCamera::new(camera),
+            &pose,
+            &towers,
+            &LabelParams::default(),
+        );
         let ahead = labels.iter().position(|l| l.tower == 0).expect("ahead");
         let p = labels[ahead].projected;
         let detected = PixelBox::new(p.left + 3.0, p.top - 2.0, p.right + 3.0, p.bottom + 1.0);

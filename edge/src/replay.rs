@@ -13,7 +13,7 @@ use nalgebra::{Matrix2, Point2, Point3};
 use towernav_core::LandmarkMap;
 use towernav_core::wire::{pose_estimate, pose_method};
 use towernav_flightlog::{FlightLog, GnssSample};
-use towernav_geometry::{Datum, Geodetic, geoid_height_m};
+use towernav_geometry::{Datum, Geodetic};
 use towernav_protocol::{DetectionFrame, NodeId, PoseEstimate, TowerType};
 
 use crate::daemon::attitude::AttitudeSource;
@@ -75,6 +75,11 @@ pub(crate) struct Recording {
 
 impl Recording {
     pub(crate) fn open(config: &EdgeConfig) -> anyhow::Result<Self> {
+        anyhow::ensure!(
+            matches!(config.attitude.kind, AttitudeKind::Log | AttitudeKind::Csv)
+                && config.attitude.path.is_some(),
+            "a recording needs its flight log (--log)"
+        );
         let mut config = config.clone();
         let (width, height) = recorded_size(&config)?;
         config.source.width = width;
@@ -83,7 +88,7 @@ impl Recording {
         let attitude = open_attitude(&config.attitude)?;
         check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
         let AttitudeSource::Log { log, offset_s } = attitude else {
-            anyhow::bail!("a recording takes its attitude from a flight log (--log)");
+            anyhow::bail!("a recording needs its flight log (--log)");
         };
         Ok(Self {
             config,
@@ -115,9 +120,11 @@ fn start_of(
                  give the start with --takeoff lat,lon,alt"
             )
         })?;
-    let height = fix.alt_msl_m + geoid_height_m(fix.lat_deg, fix.lon_deg);
+    let at = fix
+        .geodetic()
+        .with_context(|| format!("the log's GNSS fix at {:.3} s is not a place", fix.time_s))?;
     Ok((
-        [fix.lat_deg, fix.lon_deg, height],
+        [at.lat_deg, at.lon_deg, at.height_m],
         format!("the log's GNSS fix at {:.3} s", fix.time_s),
     ))
 }
@@ -129,14 +136,6 @@ pub fn replay(
     config: &EdgeConfig,
     mut progress: impl FnMut(u64, Option<u64>),
 ) -> anyhow::Result<ReplayRun> {
-    anyhow::ensure!(
-        matches!(config.attitude.kind, AttitudeKind::Log | AttitudeKind::Csv),
-        "a replay takes its attitude from a flight log (--log)"
-    );
-    anyhow::ensure!(
-        config.attitude.path.is_some(),
-        "a replay needs the flight log (--log)"
-    );
     let Recording {
         mut config,
         source,

@@ -14,12 +14,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use nalgebra::Point3;
 use towernav_core::survey_labels::{
-    Dropped, LabelParams, SurveyTower, TowerLabel, WIDTH_PER_HEIGHT, project_labels, snap,
+    Dropped, LabelCamera, LabelParams, SurveyTower, TowerLabel, WIDTH_PER_HEIGHT, project_labels,
+    snap,
 };
-use towernav_flightlog::{FlightLog, GnssSample};
-use towernav_geometry::{Datum, Geodetic, PinholeCamera, PixelBox, Pose, geoid_height_m};
+use towernav_flightlog::GnssSample;
+use towernav_geometry::{Datum, Geodetic, PinholeCamera, PixelBox, Pose};
 use towernav_protocol::LandmarkRecord;
 
 use crate::daemon::config::EdgeConfig;
@@ -49,31 +49,6 @@ pub struct LabelOptions {
     /// One class, `tower`, instead of the database's types.
     pub one_class: bool,
     pub out: PathBuf,
-}
-
-/// The log's GNSS at `time_s` in `datum`'s ENU, linear between fixes at most 1 s apart.
-fn gnss_at(gnss: &[GnssSample], datum: &Datum, time_s: f64) -> Option<Point3<f64>> {
-    let i = gnss.partition_point(|g| g.time_s < time_s);
-    let after = gnss.get(i)?;
-    let before = if after.time_s == time_s {
-        after
-    } else {
-        gnss.get(i.checked_sub(1)?)?
-    };
-    if after.time_s - before.time_s > 1.0 {
-        return None;
-    }
-    let enu = |g: &GnssSample| -> Option<Point3<f64>> {
-        let h = g.alt_msl_m + geoid_height_m(g.lat_deg, g.lon_deg);
-        Some(datum.to_enu(&Geodetic::new(g.lat_deg, g.lon_deg, h).ok()?))
-    };
-    let (p0, p1) = (enu(before)?, enu(after)?);
-    let w = if after.time_s > before.time_s {
-        (time_s - before.time_s) / (after.time_s - before.time_s)
-    } else {
-        0.0
-    };
-    Some(p0 + (p1 - p0) * w)
 }
 
 fn survey_towers(records: &[LandmarkRecord], datum: &Datum) -> anyhow::Result<Vec<SurveyTower>> {
@@ -109,16 +84,14 @@ pub fn label_flight(
         offset_s,
     } = Recording::open(config)?;
     let (width, height) = (config.source.width, config.source.height);
-    let FlightLog { gnss, .. } = &log;
-    let first = gnss
+    let datum = log
+        .gnss
         .first()
+        .and_then(GnssSample::geodetic)
+        .map(Datum::new)
         .context("the flight log has no GNSS: a survey flight needs it for the poses")?;
-    let datum = Datum::new(Geodetic::new(
-        first.lat_deg,
-        first.lon_deg,
-        first.alt_msl_m + geoid_height_m(first.lat_deg, first.lon_deg),
-    )?);
     let camera = config.camera.camera(width, height)?;
+    let labeller = LabelCamera::new(camera);
     let records = towernav_landmark_db::load_towers(
         config
             .landmarks
@@ -152,7 +125,9 @@ pub fn label_flight(
         let t = frame.time_s + offset_s;
         let (Some(attitude), Some(position), Some(image)) = (
             log.attitude_at(t),
-            gnss_at(gnss, &datum, t),
+            log.gnss_at(t)
+                .and_then(|g| g.geodetic())
+                .map(|g| datum.to_enu(&g)),
             frame.image.as_ref(),
         ) else {
             run.without_pose += 1;
@@ -162,7 +137,7 @@ pub fn label_flight(
             position_in_world: position,
             attitude,
         };
-        let mut labels = project_labels(&camera, &pose, &towers, &options.params);
+        let mut labels = project_labels(&labeller, &pose, &towers, &options.params);
         if let Some(detector) = &mut detector {
             let boxes: Vec<PixelBox> = detector
                 .detect(image, frame.seq)
@@ -251,6 +226,32 @@ struct DatasetWriter {
 const TILE_WIDTH: u32 = 320;
 const SHEET_TILES: usize = 24;
 const SHEET_COLUMNS: usize = 4;
+
+/// A frame shrunk to a contact-sheet tile with its labels drawn: green
+/// snapped to the detector, amber projected.
+fn tile(image: &image::RgbImage, labels: &[TowerLabel], w: f64, h: f64) -> image::RgbImage {
+    let scale = f64::from(TILE_WIDTH) / w;
+    let th = (h * scale).round().max(1.0) as u32;
+    let mut tile =
+        image::imageops::resize(image, TILE_WIDTH, th, image::imageops::FilterType::Triangle);
+    for l in labels {
+        let Some(b) = l.label() else { continue };
+        let b = b.clipped(w, h);
+        let small = PixelBox::new(
+            b.left * scale,
+            b.top * scale,
+            b.right * scale,
+            b.bottom * scale,
+        );
+        let colour = if l.snapped.is_some() {
+            [40, 220, 80]
+        } else {
+            [255, 180, 0]
+        };
+        draw_box(&mut tile, &small, colour, 1);
+    }
+    tile
+}
 
 /// A box's outline, `thickness` pixels, clipped to the image.
 fn draw_box(image: &mut image::RgbImage, b: &PixelBox, colour: [u8; 3], thickness: i64) {
@@ -350,16 +351,9 @@ impl DatasetWriter {
         self.coco_images.push(serde_json::json!({
             "id": image_id, "file_name": format!("{name}.jpg"), "width": k.width, "height": k.height,
         }));
-        let mut drawn = image.clone();
         for l in labels {
             let Some(b) = l.label() else { continue };
             let b = b.clipped(w, h);
-            let colour = if l.snapped.is_some() {
-                [40, 220, 80]
-            } else {
-                [255, 180, 0]
-            };
-            draw_box(&mut drawn, &b, colour, 3);
             let class = match classes.len() {
                 1 => 0,
                 _ => classes
@@ -385,13 +379,7 @@ impl DatasetWriter {
             }));
             n += 1;
         }
-        let th = (f64::from(TILE_WIDTH) * h / w).round().max(1.0) as u32;
-        self.tiles.push(image::imageops::resize(
-            &drawn,
-            TILE_WIDTH,
-            th,
-            image::imageops::FilterType::Triangle,
-        ));
+        self.tiles.push(tile(image, labels, w, h));
         let image_path = self.images.join(format!("{name}.jpg"));
         image
             .save(&image_path)

@@ -15,7 +15,7 @@ mod ulog;
 use std::path::Path;
 
 pub use error::LogError;
-pub use samples::{AttitudeSample, GnssSample};
+pub use samples::{AttitudeSample, GnssSample, MAX_GNSS_GAP_S};
 
 use towernav_geometry::Attitude;
 
@@ -97,6 +97,12 @@ impl FlightLog {
     /// outside the log.
     pub fn attitude_at(&self, time_s: f64) -> Option<Attitude> {
         samples::slerp_at(&self.attitude, time_s)
+    }
+
+    /// The GNSS fix at `time_s`, between the fixes around it; `None`
+    /// outside the log's fixes or across a gap in them.
+    pub fn gnss_at(&self, time_s: f64) -> Option<GnssSample> {
+        samples::gnss_at(&self.gnss, time_s)
     }
 
     /// Refuses frames from `first_s` to `last_s` (log clock) that the log

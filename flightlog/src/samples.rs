@@ -1,7 +1,7 @@
 //! Time-stamped samples, and attitude between them.
 
 use nalgebra::UnitQuaternion;
-use towernav_geometry::Attitude;
+use towernav_geometry::{Attitude, Geodetic, geoid_height_m};
 
 /// The body's attitude at a time on the log's clock.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -18,6 +18,41 @@ pub struct GnssSample {
     pub lon_deg: f64,
     /// Above mean sea level, as receivers and autopilots log it.
     pub alt_msl_m: f64,
+}
+
+impl GnssSample {
+    /// The fix with its height above the WGS84 ellipsoid (through the EGM96
+    /// geoid), as the rest of the project places points; `None` for a
+    /// latitude or longitude out of range.
+    pub fn geodetic(&self) -> Option<Geodetic> {
+        let h = self.alt_msl_m + geoid_height_m(self.lat_deg, self.lon_deg);
+        Geodetic::new(self.lat_deg, self.lon_deg, h).ok()
+    }
+}
+
+/// Fixes further apart than this are a gap, not a track to interpolate.
+pub const MAX_GNSS_GAP_S: f64 = 1.0;
+
+/// The fix at `time_s`, linear between the fixes around it (at most
+/// [`MAX_GNSS_GAP_S`] apart); `None` outside the log or across a gap.
+pub(crate) fn gnss_at(samples: &[GnssSample], time_s: f64) -> Option<GnssSample> {
+    let i = samples.partition_point(|g| g.time_s < time_s);
+    let after = samples.get(i)?;
+    if after.time_s == time_s {
+        return Some(*after);
+    }
+    let before = samples.get(i.checked_sub(1)?)?;
+    if after.time_s - before.time_s > MAX_GNSS_GAP_S {
+        return None;
+    }
+    let w = (time_s - before.time_s) / (after.time_s - before.time_s);
+    let mix = |a: f64, b: f64| a + (b - a) * w;
+    Some(GnssSample {
+        time_s,
+        lat_deg: mix(before.lat_deg, after.lat_deg),
+        lon_deg: mix(before.lon_deg, after.lon_deg),
+        alt_msl_m: mix(before.alt_msl_m, after.alt_msl_m),
+    })
 }
 
 /// Sorts by time and keeps one sample per time (the first): logs repeat
@@ -83,6 +118,29 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
     use towernav_geometry::wrap_angle;
+
+    #[test]
+    fn a_fix_between_fixes_is_interpolated_and_a_gap_is_not_bridged() {
+        let fix = |t: f64, lat: f64| GnssSample {
+            time_s: t,
+            lat_deg: lat,
+            lon_deg: 10.0,
+            alt_msl_m: 100.0 + t,
+        };
+        let fixes = [fix(0.0, 50.0), fix(0.5, 50.001), fix(3.0, 50.002)];
+        let mid = gnss_at(&fixes, 0.25).expect("between fixes");
+        assert!((mid.lat_deg - 50.0005).abs() < 1e-12 && (mid.alt_msl_m - 100.25).abs() < 1e-12);
+        assert_eq!(gnss_at(&fixes, 0.5), Some(fixes[1]));
+        assert!(
+            gnss_at(&fixes, 1.0).is_none(),
+            "2.5 s between fixes is a gap"
+        );
+        assert!(gnss_at(&fixes, -0.1).is_none() && gnss_at(&fixes, 3.1).is_none());
+        // MSL to the ellipsoid: the geoid's undulation is added.
+        let g = fixes[0].geodetic().expect("valid");
+        let n = geoid_height_m(50.0, 10.0);
+        assert!((g.height_m - (100.0 + n)).abs() < 1e-9 && n.abs() > 1.0);
+    }
 
     fn at(time_s: f64, roll: f64, pitch: f64, yaw: f64) -> AttitudeSample {
         AttitudeSample {

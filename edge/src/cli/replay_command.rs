@@ -12,7 +12,6 @@ use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig, SourceKind};
 use towernav_edge::replay::{ReplayRun, replay};
 use towernav_eval::cmd::demo_plots::{ErrorPoint, write_track_and_error};
 use towernav_eval::gnss_score::{ReferenceFix, ReplayEstimate, ReplayScore, score};
-use towernav_geometry::Geodetic;
 
 use crate::cli::recording_args::RecordingArgs;
 
@@ -132,10 +131,9 @@ pub fn score_run(run: &ReplayRun) -> Option<ReplayScore> {
         .gnss
         .iter()
         .filter_map(|g| {
-            let height = g.alt_msl_m + towernav_geometry::geoid_height_m(g.lat_deg, g.lon_deg);
             Some(ReferenceFix {
                 time_s: g.time_s,
-                position: Geodetic::new(g.lat_deg, g.lon_deg, height).ok()?,
+                position: g.geodetic()?,
             })
         })
         .collect();
