@@ -135,7 +135,12 @@ def main() -> int:
     shutil.copyfile(onnx_path, exported)
 
     metrics = {}
+    import yaml
+
+    splits = yaml.safe_load(data_yaml.read_text(encoding="utf-8"))
     for split in ("val", "test"):
+        if not splits.get(split):
+            continue
         r = model.val(
             data=str(data_yaml),
             split=split,

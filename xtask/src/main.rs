@@ -9,6 +9,7 @@ mod bench_edge;
 mod screenshot;
 mod system_packages;
 mod train;
+mod train_card;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -55,8 +56,30 @@ enum Task {
         #[arg(long)]
         detector_only: bool,
         /// Train from a random start instead of fine-tuning models/towers.pt.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "init")]
         from_scratch: bool,
+        /// The checkpoint to fine-tune (default: models/towers.pt).
+        #[arg(long)]
+        init: Option<PathBuf>,
+        /// Labelled images to mix with the rendered frames (repeatable): a
+        /// data.yaml (`towernav-edge label`'s output) or a folder with images/
+        /// and labels/ or labels_yolo/. The model takes the first data.yaml's
+        /// class names; a survey flight's last fifth is held out and scored.
+        #[arg(long)]
+        data: Vec<PathBuf>,
+        /// Class names, by id, of --data folders that have no data.yaml.
+        #[arg(long)]
+        data_names: Option<String>,
+        /// The model's class names, comma-separated (default: see --data).
+        #[arg(long)]
+        names: Option<String>,
+        /// SRC=DST: train a --data class as one of the model's (DST `-`
+        /// leaves out the images that hold it). Repeatable.
+        #[arg(long)]
+        map: Vec<String>,
+        /// Write the finished run's model card (run after training by itself).
+        #[arg(long, hide = true)]
+        card: bool,
     },
     /// INT8 versions of the finished training run's two models (ONNX Runtime's quantizer).
     Quantize,
@@ -119,6 +142,8 @@ impl Task {
             Self::Demo(_) | Self::BenchEdge => vec![OnnxRuntime],
             Self::Test => vec![LintComponents, OnnxRuntime, Ffmpeg, Pymavlink],
             Self::Screenshot { .. } => vec![Xvfb],
+            // The model card scores the finished run with the edge's detector.
+            Self::Train { card: true, .. } => vec![OnnxRuntime],
             Self::Gs | Self::Train { .. } | Self::Quantize | Self::SetupOrt => vec![],
         }
     }
@@ -196,6 +221,12 @@ fn main() -> anyhow::Result<()> {
             backgrounds,
             detector_only,
             from_scratch,
+            init,
+            data,
+            data_names,
+            names,
+            map,
+            card,
         } => train::train(
             &root,
             &train::TrainOptions {
@@ -209,7 +240,16 @@ fn main() -> anyhow::Result<()> {
                 backgrounds,
                 detector_only,
                 from_scratch,
+                init,
+                mix: train::MixOptions {
+                    data,
+                    data_names,
+                    names,
+                    map,
+                },
+                card,
             },
+            ort.as_deref(),
         ),
     }
 }

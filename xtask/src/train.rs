@@ -15,6 +15,13 @@
 //! 5. then `training/quantize.py`: INT8 versions of both (`cargo xtask quantize`
 //!    alone redoes this step).
 //!
+//! With `--data` (a survey flight's labels, real labelled photos), step 2
+//! ends with `training/mix.py`: their frames and the rendered ones in one
+//! dataset (`target/train/mixed`), the model taking their class names; the
+//! classifier step is skipped (the detector's own classes type the boxes); and
+//! a last step writes the run's model card (`MODEL_CARD.md`: their held-out
+//! frames scored for the new model and the one it started from).
+//!
 //! `--foreground` waits for it; `--ship` copies the exported models and the
 //! detector's checkpoint into `models/` once a run has finished, so the next
 //! stage starts from it on any machine. `--detector-only` skips the classifier.
@@ -38,13 +45,28 @@ pub struct TrainOptions {
     pub backgrounds: Vec<PathBuf>,
     pub detector_only: bool,
     pub from_scratch: bool,
+    pub init: Option<PathBuf>,
+    pub mix: MixOptions,
+    pub card: bool,
 }
 
-pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
+/// Labelled images mixed with the rendered frames (`training/mix.py`).
+pub struct MixOptions {
+    pub data: Vec<PathBuf>,
+    pub data_names: Option<String>,
+    pub names: Option<String>,
+    pub map: Vec<String>,
+}
+
+pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow::Result<()> {
     let work = target_dir(root).join("train");
     let run_dir = work.join("run");
     if options.ship {
         return ship(root, &run_dir, &work.join("types"));
+    }
+    if options.card {
+        let ort = ort.context("the model card needs ONNX Runtime")?;
+        return crate::train_card::write(root, &work, ort);
     }
     let pid_file = work.join("train.pid");
     if let Some(pid) = running(&pid_file) {
@@ -54,32 +76,51 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         );
     }
     let python = ensure_venv(root)?;
-    let dataset = work.join("dataset");
-    if !dataset.join("data.yaml").exists() {
-        render_dataset(root, &dataset, options)?;
+    let rendered = work.join("dataset");
+    if !rendered.join("data.yaml").exists() {
+        render_dataset(root, &rendered, options)?;
     }
+    let mixing = !options.mix.data.is_empty();
+    let dataset = if mixing {
+        mix(root, &python, &work, &rendered, &options.mix)?
+    } else {
+        rendered.clone()
+    };
     let shipped = root.join("models").join("towers.pt");
     let init = if options.continue_run {
         Some(archive_finished_run(&work, &run_dir)?)
+    } else if let Some(init) = &options.init {
+        if !init.is_file() {
+            bail!("--init {}: no such checkpoint", init.display());
+        }
+        Some(init.clone())
     } else if !options.from_scratch && shipped.exists() {
         Some(shipped)
     } else {
         None
     };
+    // Their own classes type the boxes: no classifier trained on rendered A-D crops.
+    let detector_only = options.detector_only || mixing;
     // The detector, then the tower-type classifier on its dataset's crops (a
     // finished classifier only re-exports). Lowest CPU priority, and OpenMP
     // threads that sleep instead of spinning: the run soaks up idle cores
     // without slowing a build beside it.
     let types_dir = work.join("types");
     // With --detector-only the classifier step is `true` and the quantizer gets the detector alone.
-    let classifier_step = if options.detector_only {
+    let classifier_step = if detector_only {
         r#"true"#
     } else {
         r#""$1" "$7" --data "$3" --out "$8""#
     };
     let mut cmd = Command::new("nice");
+    // After a mixed run, the model card: this same xtask binary, `train --card`.
+    let card_step = if mixing {
+        r#" && "$TOWERNAV_XTASK" train --card"#
+    } else {
+        ""
+    };
     cmd.args(["-n", "19", "sh", "-c"])
-        .arg(format!(r#""$1" "$2" --data "$3" --out "$4" --hours "$5" ${{6:+--init "$6"}} && {classifier_step} && py="$1" q="$9" && shift 9 && "$py" "$q" "$@""#))
+        .arg(format!(r#""$1" "$2" --data "$3" --out "$4" --hours "$5" ${{6:+--init "$6"}} && {classifier_step} && py="$1" q="$9" && shift 9 && "$py" "$q" "$@"{card_step}"#))
         .arg("sh")
         .arg(&python)
         .arg(root.join("training").join("train.py"))
@@ -91,8 +132,9 @@ pub fn train(root: &Path, options: &TrainOptions) -> anyhow::Result<()> {
         .arg(&types_dir)
         .arg(root.join("training").join("quantize.py"))
         // The quantizer's own arguments, "$@" after `shift 9`.
-        .args(quantize_args(&work, !options.detector_only))
+        .args(quantize_args(&work, &dataset, !detector_only))
         .env("OMP_WAIT_POLICY", "PASSIVE")
+        .env("TOWERNAV_XTASK", std::env::current_exe()?)
         .current_dir(root);
     if options.foreground {
         return run(&mut cmd);
@@ -124,6 +166,43 @@ fn render_dataset(root: &Path, dataset: &Path, options: &TrainOptions) -> anyhow
                 .flat_map(|b| [Path::new("--backgrounds"), b.as_path()]),
         ))?;
     Ok(())
+}
+
+/// `training/mix.py`: the rendered frames and `mix.data` in `work/mixed`.
+fn mix(
+    root: &Path,
+    python: &Path,
+    work: &Path,
+    rendered: &Path,
+    mix: &MixOptions,
+) -> anyhow::Result<PathBuf> {
+    let mixed = work.join("mixed");
+    let mut cmd = Command::new(python);
+    cmd.arg(root.join("training").join("mix.py"))
+        .arg("--out")
+        .arg(&mixed)
+        .arg("--source")
+        .arg(rendered.join("data.yaml"));
+    for data in &mix.data {
+        // A folder holding a data.yaml is that dataset.
+        let source = if data.join("data.yaml").is_file() {
+            data.join("data.yaml")
+        } else {
+            data.clone()
+        };
+        cmd.arg("--source").arg(source);
+    }
+    if let Some(names) = &mix.data_names {
+        cmd.args(["--source-names", names]);
+    }
+    if let Some(names) = &mix.names {
+        cmd.args(["--names", names]);
+    }
+    for rule in &mix.map {
+        cmd.args(["--map", rule]);
+    }
+    run(cmd.current_dir(root))?;
+    Ok(mixed)
 }
 
 /// Starts `cmd` detached, logging to `work/train.log`, its pid in `pid_file`.
@@ -162,13 +241,19 @@ fn spawn_in_background(
 
 /// `training/quantize.py`'s arguments for the run in `work`: the detector's
 /// export and, `with_types`, the classifier's, each calibrated on its own
-/// training inputs.
-fn quantize_args(work: &Path, with_types: bool) -> Vec<PathBuf> {
+/// training inputs (a mixed dataset's: the first of their own frames).
+fn quantize_args(work: &Path, dataset: &Path, with_types: bool) -> Vec<PathBuf> {
+    let theirs = dataset.join("stage").join("1-train").join("images");
+    let frames = if theirs.is_dir() {
+        theirs
+    } else {
+        dataset.join("images").join("train")
+    };
     let mut args: Vec<PathBuf> = vec![
         "--detector".into(),
         work.join("run").join("towers.onnx"),
         "--frames".into(),
-        work.join("dataset").join("images").join("train"),
+        frames,
     ];
     if with_types {
         let types = work.join("types");
@@ -189,7 +274,7 @@ pub fn quantize(root: &Path) -> anyhow::Result<()> {
     let work = target_dir(root).join("train");
     run(Command::new(python)
         .arg(root.join("training").join("quantize.py"))
-        .args(quantize_args(&work, true))
+        .args(quantize_args(&work, &work.join("dataset"), true))
         .current_dir(root))
 }
 

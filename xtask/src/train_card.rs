@@ -1,0 +1,105 @@
+//! `cargo xtask train --card`: the model card of a run fine-tuned on a user's
+//! labels, the last step of `cargo xtask train --data`.
+//!
+//! Their held-out frames (`training/mix.py` keeps the last stretch of each
+//! survey flight out of training) are scored with `towernav-edge
+//! eval-detector --images` for the new model and for the shipped one, so the
+//! card shows what the fine-tuning bought on frames it never saw.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::Command;
+
+use anyhow::{Context, bail};
+
+use crate::build_release;
+
+pub fn write(root: &Path, work: &Path, ort: &Path) -> anyhow::Result<()> {
+    let run_dir = work.join("run");
+    let mixed = work.join("mixed");
+    let model = ["towers-int8.onnx", "towers.onnx"]
+        .iter()
+        .map(|name| run_dir.join(name))
+        .find(|p| p.is_file())
+        .with_context(|| format!("no finished run in {} (no towers.onnx)", run_dir.display()))?;
+    let read = |name: &str| {
+        let path = mixed.join(name);
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))
+    };
+    let names = read("names.txt")?.trim().to_string();
+    let heldout: Vec<String> = read("heldout.txt")?
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(str::to_string)
+        .collect();
+    let bin = build_release(root, &["towernav-edge"])?;
+    let edge = bin.join("towernav-edge");
+    let shipped = root.join("models").join("towers-int8.onnx");
+
+    let mut card = String::new();
+    writeln!(card, "# Model card: {}\n", model.display())?;
+    writeln!(
+        card,
+        "Fine-tuned by `cargo xtask train --data` on the rendered frames mixed with \
+         the labelled images below; classes: `{names}`.\n"
+    )?;
+    writeln!(card, "## Data\n\n```\n{}```\n", read("mix.json")?)?;
+    if let Ok(summary) = std::fs::read_to_string(run_dir.join("summary.json")) {
+        writeln!(card, "## Training (Ultralytics)\n\n```\n{summary}```\n")?;
+    }
+    if heldout.is_empty() {
+        writeln!(
+            card,
+            "## Held-out frames\n\nNone: every labelled source was a folder without its own \
+             validation split, so all of it trained. Score real frames with \
+             `towernav-edge eval-detector --images DIR --model {}`.\n",
+            model.display()
+        )?;
+    }
+    for folder in &heldout {
+        writeln!(card, "## Held out: {folder}\n")?;
+        for (what, onnx, own_types) in [
+            ("this model, its own classes", model.as_path(), false),
+            ("the shipped model", shipped.as_path(), true),
+        ] {
+            let score = Command::new(&edge)
+                .arg("eval-detector")
+                .args(["--images", folder, "--names", &names, "--model"])
+                .arg(onnx)
+                .args((!own_types).then_some("--no-type-model"))
+                .arg("--out")
+                .arg(run_dir.join("card-eval"))
+                .env("ORT_DYLIB_PATH", ort)
+                .current_dir(root)
+                .output()
+                .with_context(|| format!("running {}", edge.display()))?;
+            if !score.status.success() {
+                bail!(
+                    "eval-detector on {folder} with {} failed:\n{}",
+                    onnx.display(),
+                    String::from_utf8_lossy(&score.stderr)
+                );
+            }
+            writeln!(
+                card,
+                "### {what}\n\n```\n{}```\n",
+                String::from_utf8_lossy(&score.stdout)
+            )?;
+        }
+    }
+    writeln!(
+        card,
+        "## Flying it\n\n    towernav-edge run --model {} --no-type-model ...\n\n\
+         Every tower type in the landmark database must be one of `{names}` \
+         (a one-class `tower` model takes any).",
+        model.display()
+    )?;
+    let path = run_dir.join("MODEL_CARD.md");
+    std::fs::write(&path, card).with_context(|| format!("writing {}", path.display()))?;
+    eprintln!(
+        "xtask: wrote {}; fly the model with `--model {} --no-type-model`",
+        path.display(),
+        model.display()
+    );
+    Ok(())
+}
