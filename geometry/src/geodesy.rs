@@ -17,9 +17,9 @@ pub struct Geodetic {
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GeodesyError {
-    #[error("latitude {0} deg is outside -90..=90")]
+    #[error("latitude {0} deg is not between -90 and 90")]
     Latitude(f64),
-    #[error("longitude {0} deg is outside -180..=180")]
+    #[error("longitude {0} deg is not between -180 and 180")]
     Longitude(f64),
     #[error("height {0} m is not a finite number")]
     Height(f64),

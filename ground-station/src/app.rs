@@ -9,10 +9,10 @@ use std::path::PathBuf;
 use egui::Color32;
 use towernav_geometry::{Datum, Geodetic};
 use towernav_landmark_db::{
-    Author, DbError, Format, ImportOptions, LandmarkDb, OsmMapping, export_csv, export_geojson,
-    export_osm_xml, import_file,
+    Author, DbError, Expect, Format, HistoryEntry, ImportOptions, LandmarkDb, OsmMapping,
+    export_csv, export_geojson, export_osm_xml, import_file,
 };
-use towernav_protocol::{LandmarkChange, LandmarkRecord, NodeId};
+use towernav_protocol::{LandmarkRecord, NodeId};
 
 use crate::camera_view::{self, CameraAction, CameraState};
 use crate::corrections::Corrections;
@@ -76,7 +76,7 @@ pub struct GsApp {
     fleet: Fleet,
     db: LandmarkDb,
     records: Vec<LandmarkRecord>,
-    history: Vec<LandmarkChange>,
+    history: Vec<HistoryEntry>,
     towers: Vec<MapTower>,
     /// Whether the datum came from towers (an empty database gets a placeholder).
     datum_from_towers: bool,
@@ -145,7 +145,7 @@ impl GsApp {
 
     fn reload_landmarks(&mut self) -> Result<(), DbError> {
         self.records = self.db.list()?;
-        self.history = self.db.changes_since(0)?;
+        self.history = self.db.history_since(0)?;
         if !self.datum_from_towers
             && let Some(datum) = map_datum(&self.records)
         {
@@ -330,13 +330,20 @@ impl GsApp {
                 .map_err(|e| e.to_string()),
             EditorAction::Delete(id) => match self.db.remove(&id, &author) {
                 Ok(Some(rev)) => {
+                    self.editor.undo_delete = self.records.iter().find(|r| r.id == id).cloned();
                     self.editor.editing = None;
                     self.editor.form = Default::default();
+                    self.editor.touched.clear();
                     Ok(format!("deleted {id} (revision {rev})"))
                 }
                 Ok(None) => Err(format!("{id} was already gone")),
                 Err(e) => Err(e.to_string()),
             },
+            EditorAction::Restore(record) => self
+                .db
+                .upsert_expecting(&record, Expect::Absent, &author)
+                .map(|rev| format!("restored {} (revision {rev})", record.id))
+                .map_err(|e| format!("{} was not restored: {e}", record.id)),
             EditorAction::Import(path, format) => {
                 let options = ImportOptions {
                     osm: OsmMapping::towernav(),

@@ -1,11 +1,16 @@
 //! The landmark editor: a table that sorts and filters, a form that adds and
-//! edits with validation shown beside each field, delete with confirmation,
-//! import and export by path or file browser, and the edit history. It only
-//! proposes changes ([`EditorAction`]); the app writes them to the database.
+//! edits with validation shown beside each field (and a check on positions
+//! far from every other tower), delete behind a confirmation dialog and with
+//! undo, import and export by path or file browser, and the edit history with
+//! who and when. It only proposes changes ([`EditorAction`]); the app writes
+//! them to the database.
+
+use std::collections::BTreeSet;
 
 use egui::{Color32, RichText};
-use towernav_landmark_db::validate;
-use towernav_protocol::{LandmarkChange, LandmarkChangeOp, LandmarkRecord, TowerType};
+use towernav_geometry::Datum;
+use towernav_landmark_db::{HistoryEntry, validate};
+use towernav_protocol::{LandmarkChangeOp, LandmarkRecord, TowerType};
 
 use crate::file_browser::FileBrowser;
 
@@ -35,6 +40,8 @@ pub enum EditorAction {
     /// filled (a new id: none), so a concurrent writer's edit is not overwritten.
     Upsert(Box<LandmarkRecord>, towernav_landmark_db::Expect),
     Delete(String),
+    /// Put a deleted tower back as it was (its id must still be free).
+    Restore(Box<LandmarkRecord>),
     Import(std::path::PathBuf, FileFormat),
     Export(std::path::PathBuf, FileFormat),
 }
@@ -156,7 +163,13 @@ pub struct EditorState {
     pub editing: Option<String>,
     /// Its revision when the form was filled from it.
     pub editing_revision: Option<u64>,
+    /// The tower the delete dialog asks about.
     pub confirm_delete: Option<String>,
+    /// The tower the last delete removed, as it was: what "Undo delete" restores.
+    pub undo_delete: Option<LandmarkRecord>,
+    /// Fields typed into since the form was (re)filled: an empty one is
+    /// flagged "required" only after the operator has been in it.
+    pub touched: BTreeSet<&'static str>,
     /// The outcome of the last action, for the operator: (ok, text).
     pub message: Option<(bool, String)>,
     pub io_path: String,
@@ -173,6 +186,8 @@ impl Default for EditorState {
             editing: None,
             editing_revision: None,
             confirm_delete: None,
+            undo_delete: None,
+            touched: BTreeSet::new(),
             message: None,
             io_path: String::new(),
             io_format: FileFormat::Csv,
@@ -303,21 +318,73 @@ fn table(ui: &mut egui::Ui, state: &mut EditorState, records: &[LandmarkRecord])
                         state.editing = Some(r.id.clone());
                         state.editing_revision = Some(r.revision);
                         state.confirm_delete = None;
+                        state.touched.clear();
+                        state.message = None;
                     }
                 });
         });
 }
 
-fn field(ui: &mut egui::Ui, label: &str, text: &mut String, error: Option<&String>) {
-    let name = ui.label(label);
-    ui.add(egui::TextEdit::singleline(text).desired_width(160.0))
+/// One row of the form: the label, a box, and what its number means.
+struct Field<'a> {
+    key: &'static str,
+    label: &'static str,
+    unit: &'static str,
+    text: &'a mut String,
+}
+
+/// The row, and its error on the row below. The box's id is its field's name,
+/// not its place: an error line appearing above it must not hand the focus to
+/// another box (egui's automatic ids count widgets, so the rows below would
+/// take new ids and the box being typed into would lose its keystrokes).
+fn field(
+    ui: &mut egui::Ui,
+    f: Field<'_>,
+    errors: &[(&'static str, String)],
+    touched: &mut BTreeSet<&'static str>,
+) {
+    let name = ui.label(f.label);
+    let response = ui
+        .add(
+            egui::TextEdit::singleline(f.text)
+                .id_salt(("landmark field", f.key))
+                .desired_width(150.0),
+        )
         .labelled_by(name.id);
+    if response.changed() {
+        touched.insert(f.key);
+    }
+    ui.label(RichText::new(f.unit).weak());
     ui.end_row();
-    if let Some(e) = error {
+    let error = errors.iter().find(|(k, _)| *k == f.key).map(|(_, e)| e);
+    // An untouched empty box is not yet an error: the form just opened.
+    if let Some(e) = error.filter(|e| touched.contains(f.key) || e.as_str() != "is required") {
         ui.label("");
         ui.colored_label(Color32::RED, e);
         ui.end_row();
     }
+}
+
+/// How far a tower may stand from every other one before the form asks
+/// whether its position was typed right (a line's towers are 0.2-0.5 km apart).
+pub const FAR_FROM_OTHERS_M: f64 = 20_000.0;
+
+/// A check on a record that is valid but looks wrong: far from every other
+/// tower (a dropped digit puts it hundreds of kilometres away).
+pub fn position_check(record: &LandmarkRecord, records: &[LandmarkRecord]) -> Option<String> {
+    let here = Datum::new(record.foot());
+    let (nearest, d) = records
+        .iter()
+        .filter(|r| r.id != record.id)
+        .map(|r| (r, here.to_enu(&r.foot()).xy().coords.norm()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    (d > FAR_FROM_OTHERS_M).then(|| {
+        format!(
+            "check: {:.0} km from the nearest tower ({}); is the position right?",
+            d / 1000.0,
+            nearest.id
+        )
+    })
 }
 
 fn form(
@@ -336,12 +403,31 @@ fn form(
     let result = state.form.record(base);
     let errors = result.as_ref().err().cloned().unwrap_or_default();
     let editing = state.editing.is_some();
-    form_fields(ui, &mut state.form, editing, records, &errors);
+    let before = state.form.clone();
+    form_fields(
+        ui,
+        &mut state.form,
+        &mut state.touched,
+        editing,
+        records,
+        &errors,
+    );
+    if state.form != before {
+        // The last outcome was about the form as it was.
+        state.message = None;
+    }
     // Errors on fields the form has no box for (e.g. base width) still show.
     for (f, e) in errors.iter().filter(|(f, _)| !boxed(f)) {
         ui.colored_label(Color32::RED, format!("{f} {e}"));
     }
-    let action = form_buttons(ui, state, records, &result);
+    let check = result
+        .as_ref()
+        .ok()
+        .and_then(|r| position_check(r, records));
+    if let Some(check) = &check {
+        ui.colored_label(Color32::YELLOW, check);
+    }
+    let action = form_buttons(ui, state, records, &result, check.is_some());
     if let Some((ok, text)) = &state.message {
         ui.colored_label(
             if *ok {
@@ -352,7 +438,16 @@ fn form(
             text,
         );
     }
-    action
+    if let Some(gone) = state.undo_delete.clone()
+        && ui
+            .button(format!("Undo delete of {}", gone.id))
+            .on_hover_text("put the tower back as it was, live to every edge")
+            .clicked()
+    {
+        state.undo_delete = None;
+        return Some(EditorAction::Restore(Box::new(gone)));
+    }
+    action.or_else(|| delete_dialog(ui, state, records))
 }
 
 /// Whether the form has a box for `field` (its errors show beside it): every
@@ -365,13 +460,13 @@ fn boxed(field: &str) -> bool {
 fn form_fields(
     ui: &mut egui::Ui,
     f: &mut Form,
+    touched: &mut BTreeSet<&'static str>,
     editing: bool,
     records: &[LandmarkRecord],
     errors: &[(&'static str, String)],
 ) {
-    let error = |field: &str| errors.iter().find(|(f, _)| *f == field).map(|(_, e)| e);
     egui::Grid::new("landmark fields")
-        .num_columns(2)
+        .num_columns(3)
         .show(ui, |ui| {
             if editing {
                 // An id is the tower's identity on the edges: renaming is delete + add.
@@ -379,27 +474,65 @@ fn form_fields(
                 ui.label(RichText::new(&f.id).strong());
                 ui.end_row();
             } else {
-                field(ui, "Id", &mut f.id, error("id"));
+                let (key, label, unit, text) = ("id", "Id", "", &mut f.id);
+                field(
+                    ui,
+                    Field {
+                        key,
+                        label,
+                        unit,
+                        text,
+                    },
+                    errors,
+                    touched,
+                );
             }
-            field(ui, "Type", &mut f.tower_type, error("tower_type"));
+            let key = "tower_type";
+            let text = &mut f.tower_type;
+            field(
+                ui,
+                Field {
+                    key,
+                    label: "Type",
+                    unit: "design name",
+                    text,
+                },
+                errors,
+                touched,
+            );
             known_types(ui, &mut f.tower_type, records);
-            field(ui, "Latitude (deg)", &mut f.lat, error("lat_deg"));
-            field(ui, "Longitude (deg)", &mut f.lon, error("lon_deg"));
-            field(
-                ui,
-                "Ground elevation (m)",
-                &mut f.elev,
-                error("ground_elev_m"),
-            );
-            field(ui, "Height (m)", &mut f.height, error("height_m"));
-            field(ui, "Line", &mut f.line_name, error("line_name"));
-            field(
-                ui,
-                "Survey source",
-                &mut f.survey_source,
-                error("survey_source"),
-            );
-            field(ui, "Notes", &mut f.notes, error("notes"));
+            let rows = [
+                ("lat_deg", "Latitude (deg)", "WGS84, north +", &mut f.lat),
+                ("lon_deg", "Longitude (deg)", "WGS84, east +", &mut f.lon),
+                (
+                    "ground_elev_m",
+                    "Ground elevation (m)",
+                    "above the WGS84 ellipsoid, not MSL",
+                    &mut f.elev,
+                ),
+                ("height_m", "Height (m)", "foot to top", &mut f.height),
+                ("line_name", "Line", "optional", &mut f.line_name),
+                (
+                    "survey_source",
+                    "Survey source",
+                    "optional",
+                    &mut f.survey_source,
+                ),
+                ("notes", "Notes", "", &mut f.notes),
+            ];
+            for (key, label, unit, text) in rows {
+                field(
+                    ui,
+                    Field {
+                        key,
+                        label,
+                        unit,
+                        text,
+                    },
+                    errors,
+                    touched,
+                );
+            }
         });
 }
 
@@ -427,12 +560,14 @@ fn known_types(ui: &mut egui::Ui, tower_type: &mut String, records: &[LandmarkRe
     ui.end_row();
 }
 
-/// Save or Add, New, and Delete with its confirmation.
+/// Save or Add (or "Add anyway" past a position check), New, and Delete,
+/// which only opens the confirmation dialog.
 fn form_buttons(
     ui: &mut egui::Ui,
     state: &mut EditorState,
     records: &[LandmarkRecord],
     result: &Result<LandmarkRecord, FieldErrors>,
+    checked: bool,
 ) -> Option<EditorAction> {
     let mut action = None;
     ui.horizontal(|ui| {
@@ -440,10 +575,11 @@ fn form_buttons(
             (None, Ok(r)) => records.iter().any(|x| x.id == r.id),
             _ => false,
         };
-        let label = if state.editing.is_some() {
-            "Save"
-        } else {
-            "Add"
+        let label = match (state.editing.is_some(), checked) {
+            (true, false) => "Save",
+            (true, true) => "Save anyway",
+            (false, false) => "Add",
+            (false, true) => "Add anyway",
         };
         let save = ui.add_enabled(result.is_ok() && !renaming_over, egui::Button::new(label));
         if renaming_over {
@@ -462,21 +598,69 @@ fn form_buttons(
             state.form = Form::default();
             state.editing = None;
             state.confirm_delete = None;
+            state.touched.clear();
+            state.message = None;
         }
-        if let Some(id) = state.editing.clone() {
-            if state.confirm_delete.as_deref() == Some(id.as_str()) {
-                if ui
-                    .button(RichText::new(format!("Really delete {id}")).color(Color32::RED))
-                    .clicked()
-                {
-                    action = Some(EditorAction::Delete(id));
-                    state.confirm_delete = None;
-                }
-            } else if ui.button("Delete").clicked() {
-                state.confirm_delete = Some(id);
-            }
+        if let Some(id) = state.editing.clone()
+            && ui
+                .button(RichText::new("Delete...").color(Color32::LIGHT_RED))
+                .clicked()
+        {
+            state.confirm_delete = Some(id);
         }
     });
+    action
+}
+
+/// The confirmation of a delete: a dialog in the middle of the window, away
+/// from the button that opened it (a double click cannot reach it), naming
+/// the tower and what deleting it does.
+fn delete_dialog(
+    ui: &mut egui::Ui,
+    state: &mut EditorState,
+    records: &[LandmarkRecord],
+) -> Option<EditorAction> {
+    let id = state.confirm_delete.clone()?;
+    let Some(record) = records.iter().find(|r| r.id == id) else {
+        state.confirm_delete = None;
+        return None;
+    };
+    let mut action = None;
+    let mut close = false;
+    let modal = egui::Modal::new(egui::Id::unique("confirm delete")).show(ui.ctx(), |ui| {
+        ui.heading(format!("Delete tower {id}?"));
+        ui.label(format!(
+            "{} ({}) at {:.6}, {:.6}, {:.1} m tall{}.",
+            record.id,
+            record.tower_type,
+            record.lat_deg,
+            record.lon_deg,
+            record.height_m,
+            record
+                .line_name
+                .as_deref()
+                .map(|l| format!(" on line {l}"))
+                .unwrap_or_default()
+        ));
+        ui.label("The removal goes live to every edge at once. It can be undone here.");
+        ui.add_space(12.0);
+        ui.horizontal(|ui| {
+            if ui.button("Keep it").clicked() {
+                close = true;
+            }
+            ui.add_space(60.0);
+            if ui
+                .button(RichText::new(format!("Delete {id}")).color(Color32::RED))
+                .clicked()
+            {
+                action = Some(EditorAction::Delete(id.clone()));
+                close = true;
+            }
+        });
+    });
+    if close || modal.should_close() {
+        state.confirm_delete = None;
+    }
     action
 }
 
@@ -525,8 +709,8 @@ fn files(ui: &mut egui::Ui, state: &mut EditorState) -> Option<EditorAction> {
     action
 }
 
-/// The database's change log, newest first.
-pub fn history(ui: &mut egui::Ui, changes: &[LandmarkChange]) {
+/// The database's change log, newest first, with who made each change and when (UTC).
+pub fn history(ui: &mut egui::Ui, changes: &[HistoryEntry]) {
     ui.heading(format!("Edit history ({} revisions)", changes.len()));
     egui::ScrollArea::vertical()
         .id_salt("history")
@@ -535,35 +719,45 @@ pub fn history(ui: &mut egui::Ui, changes: &[LandmarkChange]) {
                 .striped(true)
                 .num_columns(4)
                 .show(ui, |ui| {
-                    for h in ["Revision", "Change", "By", "At (unix s)"] {
+                    for h in ["Revision", "Change", "By", "At (UTC)"] {
                         ui.strong(h);
                     }
                     ui.end_row();
-                    for c in changes.iter().rev().take(2000) {
+                    for entry in changes.iter().rev().take(2000) {
+                        let c = &entry.change;
                         ui.label(c.revision.to_string());
                         match &c.change {
-                            LandmarkChangeOp::Upsert { record } => {
-                                ui.label(format!(
-                                    "set {} ({}, {:.6}, {:.6}, {:.1} m)",
-                                    record.id,
-                                    record.tower_type,
-                                    record.lat_deg,
-                                    record.lon_deg,
-                                    record.height_m
-                                ));
-                                ui.label(&record.updated_by);
-                                ui.label(record.updated_at_unix_s.to_string());
-                            }
-                            LandmarkChangeOp::Remove { id } => {
-                                ui.label(format!("removed {id}"));
-                                ui.label("");
-                                ui.label("");
-                            }
-                        }
+                            LandmarkChangeOp::Upsert { record } => ui.label(format!(
+                                "set {} ({}, {:.6}, {:.6}, {:.1} m)",
+                                record.id,
+                                record.tower_type,
+                                record.lat_deg,
+                                record.lon_deg,
+                                record.height_m
+                            )),
+                            LandmarkChangeOp::Remove { id } => ui.label(format!("removed {id}")),
+                        };
+                        ui.label(&entry.author.by);
+                        ui.label(utc(entry.author.at_unix_s));
                         ui.end_row();
                     }
                 });
         });
+}
+
+/// A unix time as a person reads it; 0 (changes older than authorship) as "-".
+pub fn utc(at_unix_s: i64) -> String {
+    match u64::try_from(at_unix_s) {
+        Ok(s) if s > 0 => {
+            let at = std::time::UNIX_EPOCH + std::time::Duration::from_secs(s);
+            humantime::format_rfc3339_seconds(at)
+                .to_string()
+                .replace('T', " ")
+                .trim_end_matches('Z')
+                .to_owned()
+        }
+        _ => "-".into(),
+    }
 }
 
 #[cfg(test)]

@@ -17,7 +17,7 @@ const MAX_TILES: usize = 400;
 pub enum TileError {
     #[error("tile folder {0}: not a folder")]
     NotAFolder(PathBuf),
-    #[error("tile folder {dir}: no zoom level folder (0..=19) with tiles")]
+    #[error("tile folder {dir}: no zoom level folder (0 to 19) with tiles")]
     NoZoom { dir: PathBuf },
 }
 

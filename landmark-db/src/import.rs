@@ -218,7 +218,7 @@ pub fn likely_mistakes(
                 &r.id,
                 CheckKind::Height,
                 format!(
-                    "height {} m is outside {lo}..={hi} m (type {})",
+                    "height {} m is not between {lo} and {hi} m (type {})",
                     r.height_m, r.tower_type
                 ),
             ));

@@ -23,7 +23,7 @@ pub use import::{
     import_file, import_parsed, likely_mistakes,
 };
 pub use load::load_towers;
-pub use store::{Author, BUSY_TIMEOUT, Expect, LandmarkDb};
+pub use store::{Author, BUSY_TIMEOUT, Expect, HistoryEntry, LandmarkDb};
 pub use validate::{ValidationError, validate};
 
 #[cfg(test)]

@@ -51,6 +51,13 @@ pub(crate) const MIGRATIONS: &[&str] = &[
         FROM landmarks;",
 ];
 
+/// One change of the log and its author.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HistoryEntry {
+    pub change: LandmarkChange,
+    pub author: Author,
+}
+
 /// Who writes, and when: stamped on every record and change.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Author {
@@ -329,9 +336,19 @@ impl LandmarkDb {
 
     /// Every change after `revision`, in revision order: what a replica at `revision` needs.
     pub fn changes_since(&self, revision: u64) -> Result<Vec<LandmarkChange>, DbError> {
+        Ok(self
+            .history_since(revision)?
+            .into_iter()
+            .map(|entry| entry.change)
+            .collect())
+    }
+
+    /// Every change after `revision` with who made it and when: the history an
+    /// operator reads, removals included.
+    pub fn history_since(&self, revision: u64) -> Result<Vec<HistoryEntry>, DbError> {
         let mut stmt = self
             .conn
-            .prepare("SELECT revision, id, op, record FROM changes WHERE revision > ?1 ORDER BY revision")
+            .prepare("SELECT revision, id, op, record, updated_by, updated_at_unix_s FROM changes WHERE revision > ?1 ORDER BY revision")
             .map_err(self.sql())?;
         let rows = stmt
             .query_map([revision as i64], |r| {
@@ -340,13 +357,15 @@ impl LandmarkDb {
                     r.get::<_, String>(1)?,
                     r.get::<_, String>(2)?,
                     r.get::<_, Option<String>>(3)?,
+                    r.get::<_, String>(4)?,
+                    r.get::<_, i64>(5)?,
                 ))
             })
             .map_err(self.sql())?
             .collect::<Result<Vec<_>, _>>()
             .map_err(self.sql())?;
         rows.into_iter()
-            .map(|(rev, id, op, record)| {
+            .map(|(rev, id, op, record, by, at_unix_s)| {
                 let corrupt = |reason: String| DbError::Corrupt {
                     path: self.path.clone(),
                     id: id.clone(),
@@ -365,9 +384,12 @@ impl LandmarkDb {
                         )));
                     }
                 };
-                Ok(LandmarkChange {
-                    revision: rev as u64,
-                    change,
+                Ok(HistoryEntry {
+                    change: LandmarkChange {
+                        revision: rev as u64,
+                        change,
+                    },
+                    author: Author { by, at_unix_s },
                 })
             })
             .collect()
@@ -628,6 +650,22 @@ mod tests {
             db.list().expect("list")
         );
         assert_eq!(db.changes_since(3).expect("tail").len(), 1);
+    }
+
+    #[test]
+    fn the_history_names_who_removed_a_tower_and_when() {
+        let mut db = LandmarkDb::open_in_memory().expect("open");
+        db.upsert(&tower("B1", 35.0), &surveyor()).expect("add");
+        let operator = Author {
+            by: "operator-2".into(),
+            at_unix_s: 1_790_000_500,
+        };
+        db.remove("B1", &operator).expect("remove");
+        let history = db.history_since(0).expect("history");
+        assert_eq!(history.len(), 2);
+        assert_eq!(history[0].author, surveyor());
+        assert!(matches!(&history[1].change.change, LandmarkChangeOp::Remove { id } if id == "B1"));
+        assert_eq!(history[1].author, operator);
     }
 
     #[test]

@@ -34,21 +34,27 @@ pub fn validate(r: &LandmarkRecord) -> Result<(), ValidationError> {
         return err("id", "must be 1-32 of A-Z a-z 0-9 _ - .".into());
     }
     if !(r.lat_deg.is_finite() && (-90.0..=90.0).contains(&r.lat_deg)) {
-        return err("lat_deg", format!("{} is outside -90..=90", r.lat_deg));
+        return err(
+            "lat_deg",
+            format!("{} is not between -90 and 90", r.lat_deg),
+        );
     }
     if !(r.lon_deg.is_finite() && (-180.0..=180.0).contains(&r.lon_deg)) {
-        return err("lon_deg", format!("{} is outside -180..=180", r.lon_deg));
+        return err(
+            "lon_deg",
+            format!("{} is not between -180 and 180", r.lon_deg),
+        );
     }
     if !(r.ground_elev_m.is_finite() && (-500.0..=9000.0).contains(&r.ground_elev_m)) {
         return err(
             "ground_elev_m",
-            format!("{} is outside -500..=9000 m", r.ground_elev_m),
+            format!("{} m is not between -500 and 9000 m", r.ground_elev_m),
         );
     }
     if !(r.height_m.is_finite() && r.height_m > 0.0 && r.height_m <= MAX_HEIGHT_M) {
         return err(
             "height_m",
-            format!("{} is outside 0..={MAX_HEIGHT_M} m", r.height_m),
+            format!("{} m is not between 0 and {MAX_HEIGHT_M} m", r.height_m),
         );
     }
     let optional = [
@@ -60,7 +66,7 @@ pub fn validate(r: &LandmarkRecord) -> Result<(), ValidationError> {
         if let Some(v) = value
             && !(v.is_finite() && (0.0..=max).contains(&v))
         {
-            return err(field, format!("{v} is outside 0..={max} m"));
+            return err(field, format!("{v} m is not between 0 and {max} m"));
         }
     }
     let text = [

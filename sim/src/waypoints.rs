@@ -92,13 +92,13 @@ impl FlightPlan {
             }
             if !(2.0..=500.0).contains(&w.height_m) {
                 return Err(bad(format!(
-                    "height_m {} outside 2..=500 m above the plate",
+                    "height_m {} is not between 2 and 500 m above the plate",
                     w.height_m
                 )));
             }
             if !(0.5..=30.0).contains(&w.speed_mps) {
                 return Err(bad(format!(
-                    "speed_mps {} outside 0.5..=30 m/s for a small quadrotor",
+                    "speed_mps {} is not between 0.5 and 30 m/s for a small quadrotor",
                     w.speed_mps
                 )));
             }

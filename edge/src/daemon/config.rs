@@ -644,7 +644,10 @@ impl EdgeConfig {
             _ => {}
         }
         if s.queue == 0 || s.queue > 64 {
-            return invalid("source.queue", format!("{} is not in 1..=64", s.queue));
+            return invalid(
+                "source.queue",
+                format!("{} is not between 1 and 64", s.queue),
+            );
         }
         Ok(())
     }
@@ -670,7 +673,7 @@ impl EdgeConfig {
         if self.detector.threads == 0 || self.detector.threads > 64 {
             return invalid(
                 "detector.threads",
-                format!("{} is not in 1..=64", self.detector.threads),
+                format!("{} is not between 1 and 64", self.detector.threads),
             );
         }
         if !(0.0..1.0).contains(&self.detector.min_score) {
