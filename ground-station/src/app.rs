@@ -180,6 +180,7 @@ impl GsApp {
         while let Ok(event) = self.link.events.try_recv() {
             self.fleet.apply(event, now_s);
         }
+        self.fleet.corrections.expire(now_s);
         if self.selected.is_none() {
             self.selected = self.fleet.uavs.keys().next().cloned();
         }
@@ -288,8 +289,10 @@ impl GsApp {
                     &mut self.camera,
                     &uav,
                     view,
+                    self.fleet.link(&uav, now_s),
                     &self.fleet.corrections,
                     &self.towers,
+                    now_s,
                 )
             })
             .inner;
@@ -307,6 +310,13 @@ impl GsApp {
             ),
             Some(CameraAction::Undo(request_id)) => {
                 self.fleet.corrections.undo(request_id, &operator, now_s)
+            }
+            Some(CameraAction::Resend(request_id)) => {
+                self.fleet.corrections.resend(request_id, &operator, now_s)
+            }
+            Some(CameraAction::Cancel(request_id)) => {
+                self.fleet.corrections.cancel(request_id);
+                None
             }
             None => None,
         };
@@ -596,7 +606,7 @@ mod tests {
             (sent.uav.as_str(), sent.track_id, sent.tower_id.as_deref()),
             ("uav1", 7, Some("B1"))
         );
-        harness.get_by_label("pending");
+        harness.get_by_label("pending 0 s");
 
         tx.send(NetEvent::Ack(CorrectionAck {
             uav: uav.clone(),

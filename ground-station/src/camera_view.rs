@@ -5,9 +5,9 @@
 use egui::{Color32, Rect, Sense, Stroke, pos2, vec2};
 use towernav_protocol::{NodeId, Track};
 
-use crate::corrections::{CorrectionState, Corrections};
+use crate::corrections::{ANSWER_TIMEOUT_S, CorrectionState, Corrections};
 use crate::events::DecodedPreview;
-use crate::fleet::UavView;
+use crate::fleet::{Link, UavView};
 use crate::map_view::MapTower;
 
 /// A correction the operator is preparing.
@@ -38,6 +38,10 @@ pub enum CameraAction {
         previous: Option<String>,
     },
     Undo(u64),
+    /// Send an unanswered correction again.
+    Resend(u64),
+    /// Stop waiting for a correction's answer.
+    Cancel(u64),
 }
 
 /// Binding colour: blue when pinned by an operator, green to orange as the
@@ -67,8 +71,10 @@ pub fn show(
     state: &mut CameraState,
     uav: &NodeId,
     view: &UavView,
+    link: Link,
     corrections: &Corrections,
     towers: &[MapTower],
+    now_s: f64,
 ) -> Option<CameraAction> {
     let mut action = None;
     ui.heading(format!("Camera: {uav}"));
@@ -78,11 +84,12 @@ pub fn show(
         }
         Some(preview) => {
             upload(ui, state, uav, preview);
-            let rect = frame(ui, state, preview);
+            let live = link.is_live();
+            let rect = frame(ui, state, preview, live);
             let scale = f64::from(rect.width()) / f64::from(preview.meta.frame_width.max(1));
             let tracks = view.tracks_near(preview.meta.seq);
             for track in tracks.iter().flat_map(|t| &t.tracks) {
-                if track_box(ui, track, rect, scale) {
+                if track_box(ui, track, rect, scale, live) {
                     state.picking = Some(Picking {
                         uav: uav.clone(),
                         track_id: track.track_id,
@@ -91,6 +98,9 @@ pub fn show(
                         choice: None,
                     });
                 }
+            }
+            if !live {
+                frozen(ui, rect, link);
             }
         }
     }
@@ -111,8 +121,8 @@ pub fn show(
         }
     }
     ui.separator();
-    if let Some(undo) = history(ui, uav, corrections) {
-        action = Some(CameraAction::Undo(undo));
+    if let Some(asked) = history(ui, uav, corrections, now_s) {
+        action = Some(asked);
     }
     action
 }
@@ -143,8 +153,37 @@ fn upload(ui: &egui::Ui, state: &mut CameraState, uav: &NodeId, preview: &Decode
     }
 }
 
-/// Paints the preview at the panel's width, in the frame's aspect; returns where.
-fn frame(ui: &mut egui::Ui, state: &CameraState, preview: &DecodedPreview) -> Rect {
+/// Across a frame that is no longer live: what happened and how old it is.
+fn frozen(ui: &mut egui::Ui, rect: Rect, link: Link) {
+    let (text, color) = match link {
+        Link::Lost(Some(age)) => (
+            format!("LINK LOST\nlast frame {age:.0} s ago"),
+            Color32::RED,
+        ),
+        Link::Lost(None) => ("LINK LOST".to_owned(), Color32::RED),
+        Link::Stale(age) => (format!("STALE\nlast frame {age:.1} s ago"), Color32::ORANGE),
+        Link::Live | Link::Waiting => return,
+    };
+    let painter = ui.painter();
+    let band = Rect::from_center_size(rect.center(), vec2(rect.width(), 70.0));
+    painter.rect_filled(band, 0.0, Color32::from_black_alpha(190));
+    painter.text(
+        band.center(),
+        egui::Align2::CENTER_CENTER,
+        &text,
+        egui::FontId::proportional(26.0),
+        color,
+    );
+    // Also for screen readers and tests: the overlay is painted, not a widget.
+    ui.interact(band, ui.scope_id().with("frozen"), Sense::hover())
+        .widget_info(|| {
+            egui::WidgetInfo::labeled(egui::Role::Label, true, text.replace('\n', " "))
+        });
+}
+
+/// Paints the preview at the panel's width, in the frame's aspect, greyed
+/// when it is not live; returns where.
+fn frame(ui: &mut egui::Ui, state: &CameraState, preview: &DecodedPreview, live: bool) -> Rect {
     let (fw, fh) = (
         f64::from(preview.meta.frame_width.max(1)),
         f64::from(preview.meta.frame_height.max(1)),
@@ -157,21 +196,30 @@ fn frame(ui: &mut egui::Ui, state: &CameraState, preview: &DecodedPreview) -> Re
             tex.id(),
             rect,
             Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0)),
-            Color32::WHITE,
+            if live {
+                Color32::WHITE
+            } else {
+                Color32::from_gray(80)
+            },
         );
     }
     rect
 }
 
-/// One track's box and label over the frame at `scale` screen px per frame px;
-/// true when the operator clicked it.
-fn track_box(ui: &mut egui::Ui, track: &Track, frame: Rect, scale: f64) -> bool {
+/// One track's box and label over the frame at `scale` screen px per frame px
+/// (grey on a frame that is not live: no green "sure" box on old news); true
+/// when the operator clicked it.
+fn track_box(ui: &mut egui::Ui, track: &Track, frame: Rect, scale: f64, live: bool) -> bool {
     let b = &track.bbox;
     let r = Rect::from_min_max(
         frame.min + vec2((b.left * scale) as f32, (b.top * scale) as f32),
         frame.min + vec2((b.right * scale) as f32, (b.bottom * scale) as f32),
     );
-    let color = binding_color(track);
+    let color = if live {
+        binding_color(track)
+    } else {
+        Color32::from_gray(140)
+    };
     let label = track_label(track);
     let response = ui
         .interact(
@@ -261,9 +309,15 @@ fn picker(
     (send, cancel)
 }
 
-/// This UAV's corrections, newest first, with their state; returns an undo request.
-fn history(ui: &mut egui::Ui, uav: &NodeId, corrections: &Corrections) -> Option<u64> {
-    let mut undo = None;
+/// This UAV's corrections, newest first, with their state: undo for an
+/// accepted one, resend and cancel for one still waiting or unanswered.
+fn history(
+    ui: &mut egui::Ui,
+    uav: &NodeId,
+    corrections: &Corrections,
+    now_s: f64,
+) -> Option<CameraAction> {
+    let mut asked = None;
     ui.label("Corrections");
     let mine: Vec<_> = corrections
         .sent
@@ -278,21 +332,42 @@ fn history(ui: &mut egui::Ui, uav: &NodeId, corrections: &Corrections) -> Option
     for c in mine {
         ui.horizontal(|ui| {
             let m = &c.message;
-            let what = format!(
+            ui.label(format!(
                 "#{} T{} -> {}",
-                m.request_id,
+                c.number,
                 m.track_id,
                 m.tower_id.as_deref().unwrap_or("unbound")
-            );
-            ui.label(what);
+            ))
+            .on_hover_text(format!("request id {} by {}", m.request_id, m.issued_by));
             match &c.state {
                 CorrectionState::Pending => {
-                    ui.colored_label(Color32::YELLOW, "pending");
+                    ui.colored_label(
+                        Color32::YELLOW,
+                        format!("pending {:.0} s", (now_s - c.sent_at_s).max(0.0)),
+                    );
+                    if ui.small_button("Cancel").clicked() {
+                        asked = Some(CameraAction::Cancel(m.request_id));
+                    }
+                }
+                CorrectionState::NoAnswer => {
+                    ui.colored_label(
+                        Color32::RED,
+                        format!("no answer after {ANSWER_TIMEOUT_S:.0} s"),
+                    );
+                    if ui.small_button("Resend").clicked() {
+                        asked = Some(CameraAction::Resend(m.request_id));
+                    }
+                    if ui.small_button("Cancel").clicked() {
+                        asked = Some(CameraAction::Cancel(m.request_id));
+                    }
+                }
+                CorrectionState::Cancelled => {
+                    ui.weak("cancelled");
                 }
                 CorrectionState::Accepted => {
                     ui.colored_label(Color32::LIGHT_GREEN, "accepted");
                     if !c.undone && ui.small_button("Undo").clicked() {
-                        undo = Some(m.request_id);
+                        asked = Some(CameraAction::Undo(m.request_id));
                     }
                 }
                 CorrectionState::Rejected(reason) => {
@@ -301,5 +376,5 @@ fn history(ui: &mut egui::Ui, uav: &NodeId, corrections: &Corrections) -> Option
             }
         });
     }
-    undo
+    asked
 }

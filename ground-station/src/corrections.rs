@@ -1,16 +1,30 @@
 //! Tower-id corrections the operator sent, and what the edges answered (pure).
+//!
+//! A correction no edge answers within [`ANSWER_TIMEOUT_S`] (the UAV is
+//! offline, the link dropped it) is marked so, to be resent or cancelled; an
+//! answer that comes later still counts, since the edge did act on it.
 
 use towernav_protocol::{CorrectionAck, IdCorrection, NodeId};
+
+/// How long a correction waits for its answer; edges answer in well under a second.
+pub const ANSWER_TIMEOUT_S: f64 = 5.0;
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum CorrectionState {
     Pending,
     Accepted,
     Rejected(String),
+    /// No answer within [`ANSWER_TIMEOUT_S`].
+    NoAnswer,
+    /// The operator stopped waiting for it (it was resent, or given up).
+    Cancelled,
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct SentCorrection {
+    /// 1, 2, 3... in the order sent: what the operator reads, not the
+    /// clock-seeded request id.
+    pub number: u64,
     pub message: IdCorrection,
     /// The track's binding before this correction: what an undo restores.
     pub previous: Option<String>,
@@ -56,6 +70,7 @@ impl Corrections {
         };
         self.next_request_id += 1;
         self.sent.push(SentCorrection {
+            number: self.sent.len() as u64 + 1,
             message: message.clone(),
             previous,
             state: CorrectionState::Pending,
@@ -87,6 +102,57 @@ impl Corrections {
             last.undone = true; // An undo is not itself undone.
         }
         Some(message)
+    }
+
+    /// Marks the corrections that waited past [`ANSWER_TIMEOUT_S`] as unanswered.
+    pub fn expire(&mut self, now_s: f64) {
+        for c in &mut self.sent {
+            if c.state == CorrectionState::Pending && now_s - c.sent_at_s > ANSWER_TIMEOUT_S {
+                c.state = CorrectionState::NoAnswer;
+            }
+        }
+    }
+
+    /// Sends an unanswered or pending correction again under a new request
+    /// id, the old one cancelled; `None` if it was answered.
+    pub fn resend(&mut self, request_id: u64, issued_by: &str, now_s: f64) -> Option<IdCorrection> {
+        let entry = self.sent.iter_mut().find(|c| {
+            c.message.request_id == request_id
+                && matches!(
+                    c.state,
+                    CorrectionState::Pending | CorrectionState::NoAnswer
+                )
+        })?;
+        entry.state = CorrectionState::Cancelled;
+        let (uav, track, tower, previous, undone) = (
+            entry.message.uav.clone(),
+            entry.message.track_id,
+            entry.message.tower_id.clone(),
+            entry.previous.clone(),
+            entry.undone,
+        );
+        let message = self.issue(&uav, track, tower, previous, issued_by, now_s);
+        if let Some(last) = self.sent.last_mut() {
+            last.undone = undone;
+        }
+        Some(message)
+    }
+
+    /// Stops waiting for a correction's answer; true if it was waiting.
+    pub fn cancel(&mut self, request_id: u64) -> bool {
+        match self.sent.iter_mut().find(|c| {
+            c.message.request_id == request_id
+                && matches!(
+                    c.state,
+                    CorrectionState::Pending | CorrectionState::NoAnswer
+                )
+        }) {
+            Some(c) => {
+                c.state = CorrectionState::Cancelled;
+                true
+            }
+            None => false,
+        }
     }
 
     pub fn acknowledged(&mut self, ack: &CorrectionAck) {
@@ -156,6 +222,33 @@ mod tests {
         );
         assert_eq!(c.undo(100, "op", 4.0), None, "undone once only");
         assert_eq!(c.undo(101, "op", 4.0), None, "an undo is not undone");
+    }
+
+    #[test]
+    fn an_unanswered_correction_times_out_then_resends_or_cancels_and_a_late_answer_counts() {
+        let mut c = Corrections::starting_at(1_764_000_000_000);
+        c.issue(&uav(), 7, Some("B2".into()), Some("B1".into()), "op", 10.0);
+        c.expire(10.0 + ANSWER_TIMEOUT_S - 0.1);
+        assert_eq!(c.sent[0].state, CorrectionState::Pending);
+        c.expire(10.0 + ANSWER_TIMEOUT_S + 0.1);
+        assert_eq!(c.sent[0].state, CorrectionState::NoAnswer);
+        assert!(c.pending_for(&uav(), 7).is_none(), "no longer in flight");
+
+        let again = c.resend(1_764_000_000_000, "op", 20.0).expect("resent");
+        assert_eq!(
+            (again.request_id, again.track_id, again.tower_id.as_deref()),
+            (1_764_000_000_001, 7, Some("B2"))
+        );
+        assert_eq!(c.sent[0].state, CorrectionState::Cancelled);
+        assert_eq!((c.sent[0].number, c.sent[1].number), (1, 2));
+        assert_eq!(c.sent[1].previous.as_deref(), Some("B1"));
+        assert!(c.resend(1_764_000_000_000, "op", 21.0).is_none(), "once");
+
+        assert!(c.cancel(1_764_000_000_001));
+        assert!(!c.cancel(1_764_000_000_001));
+        // The edge was only slow: its answer still says what it did.
+        c.acknowledged(&ack(1_764_000_000_001, true, None));
+        assert_eq!(c.sent[1].state, CorrectionState::Accepted);
     }
 
     #[test]

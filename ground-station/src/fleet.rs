@@ -13,6 +13,32 @@ pub use crate::events::NetEvent;
 pub const TRAIL_LEN: usize = 5000;
 /// A UAV whose last pose is older than this is stale.
 pub const STALE_AFTER_S: f64 = 2.0;
+/// A UAV silent for this long, or whose liveliness token went, has lost its
+/// link: everything shown of it is history.
+pub const LOST_AFTER_S: f64 = 5.0;
+
+/// How current what the ground station shows of a UAV is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Link {
+    /// No pose heard yet, and no sign of loss.
+    Waiting,
+    Live,
+    /// Poses are late (seconds since the last).
+    Stale(f64),
+    /// The link is gone: the edge left, the network stopped, or it has been
+    /// silent past [`LOST_AFTER_S`] (seconds since the last pose, if any).
+    Lost(Option<f64>),
+}
+
+impl Link {
+    pub fn is_live(self) -> bool {
+        matches!(self, Link::Live)
+    }
+
+    pub fn is_lost(self) -> bool {
+        matches!(self, Link::Lost(_))
+    }
+}
 /// A trail point that ends one stretch: the next pose came after a silence
 /// of more than [`STALE_AFTER_S`] or from a restarted edge (its frame count
 /// went back), and no line may join the two.
@@ -169,6 +195,20 @@ impl Fleet {
             .map(|t| (now_s - t).max(0.0))
     }
 
+    /// How current this UAV's data is: a gone liveliness token or a stopped
+    /// network is a lost link at once, silence grows from stale to lost.
+    pub fn link(&self, uav: &NodeId, now_s: f64) -> Link {
+        let age = self.pose_age_s(uav, now_s);
+        let gone = self.uavs.get(uav).and_then(|v| v.alive) == Some(false);
+        match age {
+            _ if gone || self.network_error.is_some() => Link::Lost(age),
+            Some(a) if a > LOST_AFTER_S => Link::Lost(Some(a)),
+            Some(a) if a > STALE_AFTER_S => Link::Stale(a),
+            Some(_) => Link::Live,
+            None => Link::Waiting,
+        }
+    }
+
     /// Whether the UAV's poses stopped coming (it had some, and the last is old).
     pub fn is_stale(&self, uav: &NodeId, now_s: f64) -> bool {
         self.pose_age_s(uav, now_s)
@@ -187,6 +227,27 @@ mod tests {
             lon_deg: 114.36,
             height_m: 25.0,
         }))
+    }
+
+    #[test]
+    fn silence_turns_a_link_stale_then_lost_and_a_gone_token_loses_it_at_once() {
+        let mut fleet = fleet();
+        let uav = NodeId::new("uav1").expect("valid");
+        assert_eq!(fleet.link(&uav, 0.0), Link::Waiting);
+        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.36, 1)), 10.0);
+        assert_eq!(fleet.link(&uav, 11.0), Link::Live);
+        assert_eq!(fleet.link(&uav, 13.0), Link::Stale(3.0));
+        assert_eq!(fleet.link(&uav, 16.0), Link::Lost(Some(6.0)));
+        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.36, 2)), 16.0);
+        assert!(fleet.link(&uav, 16.1).is_live());
+        fleet.apply(
+            NetEvent::Alive {
+                uav: uav.clone(),
+                alive: false,
+            },
+            16.2,
+        );
+        assert!(fleet.link(&uav, 16.2).is_lost(), "the edge left");
     }
 
     #[test]

@@ -1,11 +1,12 @@
 //! The fleet panel: which UAVs are online, their rate, latency, health and
-//! dropped frames, a warning when their data goes stale; picks the UAV the
-//! camera view shows.
+//! dropped frames; a lost link as a red banner no one can miss, and every
+//! figure of a UAV that stopped talking greyed as "last known"; picks the UAV
+//! the camera view shows.
 
 use egui::{Color32, RichText};
-use towernav_protocol::{Health, NodeId, StatusHeartbeat};
+use towernav_protocol::{EdgeState, Health, NodeId, StatusHeartbeat};
 
-use crate::fleet::{Fleet, UavView};
+use crate::fleet::{Fleet, Link, UavView};
 use crate::map_view::uav_color;
 
 pub fn show(
@@ -17,21 +18,32 @@ pub fn show(
 ) {
     ui.heading("Fleet");
     if let Some(e) = &fleet.network_error {
-        ui.colored_label(Color32::RED, format!("network stopped: {e}"));
+        banner(ui, &format!("NETWORK STOPPED: {e}"));
+    }
+    for uav in fleet.uavs.keys() {
+        if let Link::Lost(age) = fleet.link(uav, now_s) {
+            banner(ui, &format!("LINK LOST: {uav}{}", silent_for(age)));
+        }
     }
     if fleet.uavs.is_empty() {
         ui.label(format!("No UAV yet. Listening via {listening_on}"));
     }
     for (i, (uav, view)) in fleet.uavs.iter().enumerate() {
         ui.separator();
-        uav_header(ui, i, uav, view, selected);
-        pose_lines(ui, fleet, uav, view, now_s);
+        let link = fleet.link(uav, now_s);
+        uav_header(ui, i, uav, view, link, selected);
+        pose_lines(ui, view, link, now_s);
         if let Some(s) = &view.status {
-            status_lines(ui, s);
+            status_lines(ui, s, link.is_live());
         }
         if let Some(t) = view.tracks() {
             let bound = t.tracks.iter().filter(|t| t.tower_id.is_some()).count();
-            ui.label(format!("{} tracks, {bound} bound", t.tracks.len()));
+            let text = format!("{} tracks, {bound} bound", t.tracks.len());
+            if link.is_live() {
+                ui.label(text);
+            } else {
+                ui.weak(format!("last known: {text}"));
+            }
         }
     }
     if !fleet.rejected.is_empty() {
@@ -53,19 +65,51 @@ pub fn show(
     }
 }
 
-/// Presence dot, the UAV's name (click to select) and whether it is online.
+/// A full-width red bar in large type: a lost link must not look like a
+/// small dot changing colour.
+fn banner(ui: &mut egui::Ui, text: &str) {
+    egui::Frame::new()
+        .fill(Color32::from_rgb(170, 20, 20))
+        .inner_margin(8.0)
+        .corner_radius(4.0)
+        .show(ui, |ui| {
+            ui.set_min_width(ui.available_width());
+            ui.label(
+                RichText::new(text)
+                    .color(Color32::WHITE)
+                    .strong()
+                    .size(18.0),
+            );
+        });
+}
+
+/// " (no data for 12 s)", or nothing when no pose ever came.
+fn silent_for(age: Option<f64>) -> String {
+    age.map(|a| format!(" (no data for {a:.0} s)"))
+        .unwrap_or_default()
+}
+
+/// Presence dot, the UAV's name (click to select) and its link.
 fn uav_header(
     ui: &mut egui::Ui,
     i: usize,
     uav: &NodeId,
     view: &UavView,
+    link: Link,
     selected: &mut Option<NodeId>,
 ) {
     ui.horizontal(|ui| {
-        let (dot, online) = match view.alive {
-            Some(true) => (Color32::LIGHT_GREEN, "online"),
-            Some(false) => (Color32::RED, "offline"),
-            None => (Color32::GRAY, "presence unknown"),
+        let (dot, online) = match (link, view.alive) {
+            (Link::Lost(_), _) => (
+                Color32::RED,
+                RichText::new("LINK LOST").color(Color32::RED).strong(),
+            ),
+            (Link::Stale(_), _) => (
+                Color32::ORANGE,
+                RichText::new("late").color(Color32::ORANGE),
+            ),
+            (_, Some(true)) => (Color32::LIGHT_GREEN, RichText::new("online")),
+            (_, _) => (Color32::GRAY, RichText::new("presence unknown")),
         };
         let (r, _) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
         ui.painter().circle_filled(r.center(), 4.0, dot);
@@ -80,36 +124,73 @@ fn uav_header(
     });
 }
 
-/// Pose rate and age (or STALE), the last position with its 1-sigma, and the towers used.
-fn pose_lines(ui: &mut egui::Ui, fleet: &Fleet, uav: &NodeId, view: &UavView, now_s: f64) {
-    match fleet.pose_age_s(uav, now_s) {
-        Some(age) if fleet.is_stale(uav, now_s) => {
+/// Pose rate and age (or STALE, or LINK LOST), the last position with its
+/// 1-sigma, heading and height above the ellipsoid, and the towers used.
+fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, now_s: f64) {
+    match link {
+        Link::Lost(Some(age)) => {
+            ui.colored_label(Color32::RED, format!("LINK LOST: no pose for {age:.1} s"));
+        }
+        Link::Lost(None) => {
+            ui.colored_label(Color32::RED, "LINK LOST before any pose");
+        }
+        Link::Stale(age) => {
             ui.colored_label(Color32::ORANGE, format!("STALE: no pose for {age:.1} s"));
         }
-        Some(age) => {
+        Link::Live => {
+            let age = view.last_pose_at_s.map_or(0.0, |t| (now_s - t).max(0.0));
             ui.label(format!(
                 "{:.0} poses/s, last {age:.1} s ago",
                 view.pose_rate_hz(now_s)
             ));
         }
-        None => {
+        Link::Waiting => {
             ui.label("no pose yet");
         }
     }
     if let Some(p) = &view.last_pose {
         let sigma = (p.covariance[0][0] + p.covariance[1][1]).max(0.0).sqrt();
-        ui.label(format!(
-            "{:.6}, {:.6}  alt {:.1} m  ±{sigma:.1} m",
+        // The pose's yaw is counter-clockwise from east; a compass heading is
+        // clockwise from north.
+        let heading = (90.0 - p.yaw_rad.to_degrees()).rem_euclid(360.0);
+        let text = format!(
+            "{:.6}, {:.6}  ±{sigma:.1} m\nheight {:.1} m above the WGS84 ellipsoid, heading {heading:.0} deg",
             p.lat_deg, p.lon_deg, p.alt_m
-        ));
-        if !p.towers_used.is_empty() {
+        );
+        if link.is_live() {
+            ui.label(text);
+        } else {
+            ui.weak(format!("last known: {text}"));
+        }
+        if !p.towers_used.is_empty() && link.is_live() {
             ui.label(format!("fix from {}", p.towers_used.join(" ")));
         }
     }
 }
 
-/// Health, state, rate, latency and the frames lost, from the edge's status.
-fn status_lines(ui: &mut egui::Ui, s: &StatusHeartbeat) {
+/// The edge's state as an operator says it.
+pub fn state_name(state: EdgeState) -> &'static str {
+    match state {
+        EdgeState::Initializing => "starting, no fix yet",
+        EdgeState::Localized => "localized",
+        EdgeState::Coasting => "coasting (no tower in sight)",
+        EdgeState::NoFix => "no fix",
+    }
+}
+
+/// Health, state, rate, latency and the frames lost, from the edge's status;
+/// greyed as "last known" when the link is not live (a green "health ok"
+/// from a UAV that stopped talking would be a lie).
+fn status_lines(ui: &mut egui::Ui, s: &StatusHeartbeat, live: bool) {
+    if !live {
+        ui.weak(format!(
+            "last known: health {:?}, {}, {:.0} frames/s",
+            s.health,
+            state_name(s.state),
+            s.frame_rate_hz
+        ));
+        return;
+    }
     let health = match s.health {
         Health::Ok => RichText::new("health ok").color(Color32::LIGHT_GREEN),
         Health::Degraded => RichText::new("degraded").color(Color32::YELLOW),
@@ -117,7 +198,11 @@ fn status_lines(ui: &mut egui::Ui, s: &StatusHeartbeat) {
     };
     ui.horizontal(|ui| {
         ui.label(health);
-        ui.label(format!("{:?}, {:.0} frames/s", s.state, s.frame_rate_hz));
+        ui.label(format!(
+            "{}, {:.0} frames/s",
+            state_name(s.state),
+            s.frame_rate_hz
+        ));
     });
     ui.label(format!(
         "latency p50 {:.0} ms, p99 {:.0} ms",

@@ -11,7 +11,7 @@ use egui_plot::{
 };
 use towernav_protocol::{NodeId, TowerType};
 
-use crate::fleet::Fleet;
+use crate::fleet::{Fleet, Link};
 use crate::tiles::TileLayer;
 
 /// A tower as the map draws it: east/north about the map datum.
@@ -242,7 +242,8 @@ fn draw_fleet(
         for stretch in stretches(&view.trail) {
             plot.line(Line::new(uav.as_str(), stretch).color(color).width(width));
         }
-        if let Some(p) = &view.last_pose {
+        let link = fleet.link(uav, now_s);
+        if let Some(p) = view.last_pose.as_ref().filter(|_| link.is_live()) {
             let cov = [
                 [p.covariance[0][0], p.covariance[0][1]],
                 [p.covariance[1][0], p.covariance[1][1]],
@@ -262,15 +263,22 @@ fn draw_fleet(
                 }
             }
         }
+        // A UAV that stopped talking keeps its last place, greyed, without the
+        // ellipse and sightlines that would say it still sees towers.
+        let (marker, name) = match link {
+            Link::Live | Link::Waiting => (color, uav.to_string()),
+            Link::Stale(_) => (Color32::GRAY, format!("{uav} (late)")),
+            Link::Lost(_) => (Color32::RED, format!("{uav}: LINK LOST, last known")),
+        };
         plot.points(
-            Points::new(uav.as_str(), vec![last])
-                .shape(MarkerShape::Diamond)
-                .radius(7.0)
-                .color(if fleet.is_stale(uav, now_s) {
-                    Color32::GRAY
+            Points::new(name, vec![last])
+                .shape(if link.is_lost() {
+                    MarkerShape::Cross
                 } else {
-                    color
-                }),
+                    MarkerShape::Diamond
+                })
+                .radius(7.0)
+                .color(marker),
         );
     }
 }

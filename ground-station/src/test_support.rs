@@ -78,3 +78,36 @@ pub fn app() -> (Sender<NetEvent>, UnboundedReceiver<NetCommand>, GsApp) {
     let app = GsApp::new(db, link, GsOptions::default()).expect("app");
     (tx, commands, app)
 }
+
+/// What an edge sends for frame `seq`: its tracks (one, track 7, bound to
+/// A1), then its preview as the network thread decodes it.
+pub fn frame_events(uav: &str, seq: u64) -> Vec<NetEvent> {
+    use towernav_geometry::PixelBox;
+    use towernav_protocol::{Keys, Preview, Track, TrackReport};
+    let node = NodeId::new(uav).expect("valid");
+    let tracks = NetEvent::Tracks(TrackReport {
+        uav: node.clone(),
+        time_s: seq as f64 / 30.0,
+        seq,
+        tracks: vec![Track {
+            track_id: 7,
+            bbox: PixelBox::new(600.0, 200.0, 660.0, 400.0),
+            tower_type: TowerType::A,
+            tower_id: Some("A1".into()),
+            pinned: false,
+            confidence: Some(0.9),
+        }],
+    });
+    let preview = Preview {
+        uav: node.clone(),
+        time_s: seq as f64 / 30.0,
+        seq,
+        frame_width: 1280,
+        frame_height: 720,
+        jpeg: jpeg(64, 36, [90, 120, 160]),
+    };
+    let bytes = towernav_protocol::encode(&preview).expect("encode");
+    let key = Keys::new(NodeId::new("demo").expect("valid")).uav_key::<Preview>(&node);
+    let preview = crate::events::decode_sample(&key, &bytes).expect("a preview");
+    vec![tracks, preview]
+}

@@ -1,0 +1,180 @@
+//! The ground station when a UAV stops talking, driven through egui_kittest:
+//! the loss is loud everywhere the UAV is drawn, and a correction sent into
+//! the silence ends in "no answer" with resend and cancel, never "pending"
+//! forever.
+
+use std::cell::Cell;
+use std::rc::Rc;
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use towernav_ground_station::app::GsApp;
+use towernav_ground_station::events::NetEvent;
+use towernav_ground_station::net::NetCommand;
+use towernav_ground_station::test_support::{app, frame_events, pose};
+use towernav_protocol::{CorrectionAck, EdgeState, Health, IdCorrection, NodeId, StatusHeartbeat};
+
+fn harness(app: GsApp, now: Rc<Cell<f64>>) -> Harness<'static, GsApp> {
+    Harness::builder()
+        .with_size([1600.0, 900.0])
+        .build_ui_state(move |ui, app: &mut GsApp| app.show(ui, now.get()), app)
+}
+
+fn status() -> StatusHeartbeat {
+    StatusHeartbeat {
+        uav: NodeId::new("uav1").expect("valid"),
+        time_s: 1.0,
+        state: EdgeState::Localized,
+        frames_processed: 30,
+        frame_rate_hz: 30.0,
+        landmarks_loaded: 2,
+        datum_lat_deg: 30.52,
+        datum_lon_deg: 114.36,
+        datum_alt_m: 25.0,
+        health: Health::Ok,
+        frames_dropped: 0,
+        frames_failed: 0,
+        latency_p50_ms: 3.0,
+        latency_p99_ms: 9.0,
+        detector: "oracle".into(),
+    }
+}
+
+/// A live UAV with a pose, a status, tracks and a preview.
+fn live() -> (
+    std::sync::mpsc::Sender<NetEvent>,
+    tokio::sync::mpsc::UnboundedReceiver<NetCommand>,
+    Harness<'static, GsApp>,
+    Rc<Cell<f64>>,
+) {
+    let (tx, commands, app) = app();
+    let uav = NodeId::new("uav1").expect("valid");
+    tx.send(NetEvent::Alive { uav, alive: true }).expect("send");
+    tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 5)))
+        .expect("send");
+    tx.send(NetEvent::Status(status())).expect("send");
+    for e in frame_events("uav1", 5) {
+        tx.send(e).expect("send");
+    }
+    let now = Rc::new(Cell::new(0.0));
+    let mut harness = harness(app, now.clone());
+    harness.run();
+    (tx, commands, harness, now)
+}
+
+#[test]
+fn a_lost_link_is_loud_in_the_panel_and_the_camera_and_nothing_stays_green() {
+    let (tx, _commands, mut harness, now) = live();
+    harness.get_by_label("health ok");
+    harness.get_by_label("online");
+    harness.get_by_label("localized, 30 frames/s");
+    assert!(harness.query_by_label_contains("LINK LOST").is_none());
+
+    // Poses stop: late first, then lost.
+    now.set(3.0);
+    harness.run();
+    harness.get_by_label("STALE: no pose for 3.0 s");
+    harness.get_by_label("STALE last frame 3.0 s ago");
+    assert!(
+        harness.query_by_label("health ok").is_none(),
+        "no green health on old news"
+    );
+
+    now.set(12.0);
+    harness.run();
+    harness.get_by_label("LINK LOST: uav1 (no data for 12 s)");
+    harness.get_by_label("LINK LOST: no pose for 12.0 s");
+    harness.get_by_label("LINK LOST last frame 12 s ago");
+    harness.get_by_label_contains("last known: health Ok, localized");
+    assert!(harness.query_by_label("health ok").is_none());
+    assert!(harness.query_by_label("online").is_none());
+
+    // The edge comes back: the banner goes.
+    tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 6)))
+        .expect("send");
+    harness.run();
+    assert!(harness.query_by_label_contains("LINK LOST").is_none());
+    harness.get_by_label("health ok");
+
+    // Its liveliness token goes: lost at once, before any silence.
+    tx.send(NetEvent::Alive {
+        uav: NodeId::new("uav1").expect("valid"),
+        alive: false,
+    })
+    .expect("send");
+    harness.run();
+    harness.get_by_label_contains("LINK LOST: uav1");
+}
+
+/// Clicks track 7's box, picks B1 and sends it; returns what was published.
+fn send_b1(
+    harness: &mut Harness<'static, GsApp>,
+    commands: &mut tokio::sync::mpsc::UnboundedReceiver<NetCommand>,
+) -> IdCorrection {
+    harness.get_by_label("T7 A1").click();
+    harness.run();
+    harness.get_by_label("B1 (B)").click();
+    harness.run();
+    harness.get_by_label("Send B1").click();
+    harness.run();
+    match commands.try_recv() {
+        Ok(NetCommand::Correct(c)) => c,
+        other => panic!("expected a correction, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_correction_to_a_silent_uav_times_out_and_can_be_resent_or_cancelled() {
+    let (tx, mut commands, mut harness, now) = live();
+    let first = send_b1(&mut harness, &mut commands);
+    harness.get_by_label("#1 T7 -> B1");
+    harness.get_by_label("pending 0 s");
+
+    now.set(6.0);
+    harness.run();
+    harness.get_by_label("no answer after 5 s");
+    assert!(harness.query_by_label_contains("pending").is_none());
+
+    harness.get_by_label("Resend").click();
+    harness.run();
+    let again = match commands.try_recv() {
+        Ok(NetCommand::Correct(c)) => c,
+        other => panic!("expected the resend, got {other:?}"),
+    };
+    assert_eq!(
+        (again.track_id, again.tower_id.as_deref()),
+        (first.track_id, first.tower_id.as_deref())
+    );
+    assert_ne!(again.request_id, first.request_id);
+    harness.get_by_label("#2 T7 -> B1");
+    harness.get_by_label("cancelled");
+    harness.get_by_label("pending 0 s");
+
+    // The edge is back and answers the resend.
+    tx.send(NetEvent::Ack(CorrectionAck {
+        uav: again.uav.clone(),
+        request_id: again.request_id,
+        accepted: true,
+        reason: None,
+    }))
+    .expect("send");
+    harness.run();
+    harness.get_by_label("accepted");
+
+    // A third one is given up by the operator.
+    send_b1(&mut harness, &mut commands);
+    harness.get_by_label("Cancel").click();
+    harness.run();
+    assert!(harness.query_by_label_contains("pending").is_none());
+    assert_eq!(
+        harness
+            .state()
+            .fleet()
+            .corrections
+            .sent
+            .iter()
+            .filter(|c| c.state == towernav_ground_station::corrections::CorrectionState::Cancelled)
+            .count(),
+        2
+    );
+}
