@@ -287,12 +287,14 @@ impl GsApp {
                 camera_view::show(
                     ui,
                     &mut self.camera,
-                    &uav,
-                    view,
-                    self.fleet.link(&uav, now_s),
+                    camera_view::Shown {
+                        uav: &uav,
+                        view,
+                        link: self.fleet.link(&uav, now_s),
+                        now_s,
+                    },
                     &self.fleet.corrections,
                     &self.towers,
-                    now_s,
                 )
             })
             .inner;

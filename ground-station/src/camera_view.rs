@@ -66,16 +66,27 @@ pub fn track_label(track: &Track) -> String {
     )
 }
 
+/// The UAV the camera shows, as the fleet knows it now.
+pub struct Shown<'a> {
+    pub uav: &'a NodeId,
+    pub view: &'a UavView,
+    pub link: Link,
+    pub now_s: f64,
+}
+
 pub fn show(
     ui: &mut egui::Ui,
     state: &mut CameraState,
-    uav: &NodeId,
-    view: &UavView,
-    link: Link,
+    shown: Shown<'_>,
     corrections: &Corrections,
     towers: &[MapTower],
-    now_s: f64,
 ) -> Option<CameraAction> {
+    let Shown {
+        uav,
+        view,
+        link,
+        now_s,
+    } = shown;
     let mut action = None;
     ui.heading(format!("Camera: {uav}"));
     match &view.preview {
