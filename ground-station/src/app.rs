@@ -6,7 +6,6 @@
 
 use std::path::PathBuf;
 
-use egui::Color32;
 use towernav_geometry::{Datum, Geodetic};
 use towernav_landmark_db::{
     Author, DbError, Expect, Format, HistoryEntry, ImportOptions, LandmarkDb, OsmMapping,
@@ -16,11 +15,14 @@ use towernav_protocol::{LandmarkRecord, NodeId};
 
 use crate::camera_view::{self, CameraAction, CameraState};
 use crate::corrections::Corrections;
+use crate::events::NetEvent;
 use crate::fleet::Fleet;
 use crate::fleet_panel;
 use crate::landmark_editor::{self, EditorAction, EditorState, FileFormat};
 use crate::map_view::{self, MapState, MapTower};
 use crate::net::{NetCommand, NetLink};
+use crate::recording::ReplayPlayer;
+use crate::session_bar::{self, RecordAction};
 use crate::tiles::TileLayer;
 
 /// The map frame's origin: the towers' centroid, on the lowest foot.
@@ -88,8 +90,11 @@ pub struct GsApp {
     map: MapState,
     camera: CameraState,
     editor: EditorState,
-    recording: bool,
+    /// A Record was asked for and the network side has not answered yet.
+    record_waiting: bool,
     record_path: String,
+    /// The recording being shown instead of live traffic.
+    replay: Option<ReplayPlayer>,
 }
 
 impl GsApp {
@@ -127,12 +132,24 @@ impl GsApp {
             map: MapState::default(),
             camera: CameraState::default(),
             editor: EditorState::default(),
-            recording: false,
+            record_waiting: false,
             record_path: "session.mcap".into(),
+            replay: None,
             options,
         };
         app.reload_landmarks()?;
         Ok(app)
+    }
+
+    /// Shows `player`'s recording instead of live traffic; the landmarks
+    /// become read-only (they are the recording's, not the field's).
+    pub fn replaying(mut self, player: ReplayPlayer) -> Self {
+        self.replay = Some(player);
+        self
+    }
+
+    pub fn replay(&self) -> Option<&ReplayPlayer> {
+        self.replay.as_ref()
     }
 
     pub fn fleet(&self) -> &Fleet {
@@ -175,16 +192,31 @@ impl GsApp {
         Ok(())
     }
 
-    /// Draws one frame; `now_s` is the ground station's monotonic clock.
+    /// Draws one frame; `now_s` is the ground station's monotonic clock
+    /// (while replaying, the recording's own clock takes its place).
     pub fn show(&mut self, ui: &mut egui::Ui, now_s: f64) {
+        let now_s = match self.replay.as_mut() {
+            Some(player) => {
+                let due = player.advance(now_s);
+                let at = player.position_s();
+                for event in due {
+                    self.fleet.apply(event, at);
+                }
+                at
+            }
+            None => now_s,
+        };
         while let Ok(event) = self.link.events.try_recv() {
+            if matches!(event, NetEvent::Recording(_)) {
+                self.record_waiting = false;
+            }
             self.fleet.apply(event, now_s);
         }
         self.fleet.corrections.expire(now_s);
         if self.selected.is_none() {
             self.selected = self.fleet.uavs.keys().next().cloned();
         }
-        egui::Panel::top("toolbar").show(ui, |ui| self.toolbar(ui));
+        egui::Panel::top("toolbar").show(ui, |ui| self.toolbar(ui, now_s));
         egui::Panel::left("fleet")
             .default_size(270.0)
             .show(ui, |ui| {
@@ -219,7 +251,11 @@ impl GsApp {
                 });
             }
             Tab::Landmarks => {
-                if let Some(action) = landmark_editor::show(ui, &mut self.editor, &self.records) {
+                let action = landmark_editor::show(ui, &mut self.editor, &self.records);
+                // A replay's towers are the recording's: looked at, not edited.
+                if let Some(action) = action
+                    .filter(|a| self.replay.is_none() || matches!(a, EditorAction::Export(..)))
+                {
                     self.apply_editor(action);
                 }
             }
@@ -230,32 +266,38 @@ impl GsApp {
         }
     }
 
-    fn toolbar(&mut self, ui: &mut egui::Ui) {
+    fn toolbar(&mut self, ui: &mut egui::Ui, now_s: f64) {
         ui.horizontal(|ui| {
             ui.selectable_value(&mut self.tab, Tab::Map, "Map");
             ui.selectable_value(&mut self.tab, Tab::Landmarks, "Landmarks");
             ui.selectable_value(&mut self.tab, Tab::History, "History");
             ui.separator();
-            if let Some(path) = &self.options.replaying {
-                ui.colored_label(Color32::LIGHT_BLUE, format!("replaying {}", path.display()));
-            } else if self.recording {
-                ui.colored_label(Color32::RED, "recording");
-                if ui.button("Stop").clicked() {
-                    self.recording = false;
-                    self.command(NetCommand::StopRecording);
+            if let Some(player) = self.replay.as_mut() {
+                let name = self
+                    .options
+                    .replaying
+                    .as_deref()
+                    .map(|p| p.display().to_string())
+                    .unwrap_or_default();
+                if session_bar::replay_controls(ui, player, &name) {
+                    self.fleet.forget_uavs();
                 }
             } else {
-                let name = ui.label("Record to");
-                ui.add(egui::TextEdit::singleline(&mut self.record_path).desired_width(160.0))
-                    .labelled_by(name.id);
-                if ui
-                    .button("Record")
-                    .on_hover_text("record every topic to MCAP")
-                    .clicked()
-                {
-                    self.recording = true;
-                    let path = PathBuf::from(self.record_path.trim());
-                    self.command(NetCommand::StartRecording(path));
+                let asked = session_bar::record_controls(
+                    ui,
+                    self.fleet.recording.as_ref(),
+                    self.record_waiting,
+                    &mut self.record_path,
+                    now_s,
+                );
+                match asked {
+                    Some(RecordAction::Start(path)) => {
+                        self.record_waiting = true;
+                        let landmarks = self.records.clone();
+                        self.command(NetCommand::StartRecording { path, landmarks });
+                    }
+                    Some(RecordAction::Stop) => self.command(NetCommand::StopRecording),
+                    None => {}
                 }
             }
             if let Some(notice) = self.fleet.notices.last() {

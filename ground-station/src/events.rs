@@ -34,8 +34,11 @@ pub enum NetEvent {
         key: String,
         error: String,
     },
-    /// Something the operator should read: a recording started or stopped, a send failed.
+    /// Something the operator should read: a send failed, a recording ended.
     Notice(String),
+    /// Whether a recording is running: `Some(path)` once its file is open,
+    /// `None` when it stopped or could not start (a notice says why).
+    Recording(Option<std::path::PathBuf>),
     /// The network side failed and stopped.
     Failed(String),
 }

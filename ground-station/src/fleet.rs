@@ -103,6 +103,8 @@ pub struct Fleet {
     /// Messages for the operator from the network side (recording, sends).
     pub notices: Vec<String>,
     pub network_error: Option<String>,
+    /// The recording running, and since when (the app's clock).
+    pub recording: Option<(std::path::PathBuf, f64)>,
 }
 
 fn push_bounded(trail: &mut VecDeque<[f64; 2]>, point: [f64; 2]) {
@@ -121,6 +123,7 @@ impl Fleet {
             rejected: Vec::new(),
             notices: Vec::new(),
             network_error: None,
+            recording: None,
         }
     }
 
@@ -183,8 +186,15 @@ impl Fleet {
             }
             NetEvent::Rejected { key, error } => self.rejected.push((key, error)),
             NetEvent::Notice(text) => self.notices.push(text),
+            NetEvent::Recording(path) => self.recording = path.map(|p| (p, now_s)),
             NetEvent::Failed(e) => self.network_error = Some(e),
         }
+    }
+
+    /// Forgets every UAV (a replay sought backwards shows its start again);
+    /// corrections and notices stay.
+    pub fn forget_uavs(&mut self) {
+        self.uavs.clear();
     }
 
     /// Seconds since the UAV's last pose arrived.

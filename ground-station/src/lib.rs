@@ -16,6 +16,7 @@ pub mod landmark_service;
 pub mod map_view;
 pub mod net;
 pub mod recording;
+pub mod session_bar;
 #[cfg(any(test, feature = "test-support"))]
 pub mod test_support;
 pub mod tiles;

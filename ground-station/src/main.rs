@@ -8,7 +8,7 @@ use std::time::Instant;
 use clap::Parser;
 use towernav_ground_station::app::{GsApp, GsOptions};
 use towernav_ground_station::net::{self, NetLink};
-use towernav_ground_station::recording;
+use towernav_ground_station::recording::{self, ReplayPlayer};
 use towernav_landmark_db::{Author, LandmarkDb, import_csv};
 use towernav_protocol::NodeId;
 use towernav_protocol::session::Endpoints;
@@ -63,16 +63,22 @@ fn main() -> anyhow::Result<()> {
         )
         .init();
     let cli = Cli::parse();
-    let db = open_database(&cli)?;
+    // A replay is read, and refused, before any window opens; it brings its
+    // own towers, and touches no database file.
+    let replay = cli
+        .replay
+        .as_deref()
+        .map(|path| replay_database(path, &cli))
+        .transpose()?;
+    let (db, replay) = match replay {
+        Some((db, samples)) => (db, Some(samples)),
+        None => (open_database(&cli)?, None),
+    };
     let endpoints = Endpoints {
         listen: cli.listen.clone(),
         connect: cli.connect.clone(),
     };
     let options = gs_options(&cli);
-    if let Some(path) = &cli.replay {
-        // Refuse a bad recording before opening a window.
-        recording::read(path)?;
-    }
     let db_path = cli.db.clone();
     let start = Instant::now();
     let continuous = cli.continuous;
@@ -97,15 +103,18 @@ fn main() -> anyhow::Result<()> {
         Box::new(move |cc| {
             let ctx = cc.egui_ctx.clone();
             let wake = move || ctx.request_repaint();
-            let link = match &cli.replay {
-                Some(path) => {
-                    let (tx, _commands, link) = NetLink::detached();
-                    recording::spawn_replay(path, cli.replay_speed, tx, wake)?;
-                    link
+            let mut app = match replay {
+                Some(samples) => {
+                    let (_tx, _commands, link) = NetLink::detached();
+                    GsApp::new(db, link, options)?
+                        .replaying(ReplayPlayer::new(samples, cli.replay_speed))
                 }
-                None => net::spawn(endpoints, cli.fleet, Some(db_path), wake),
+                None => GsApp::new(
+                    db,
+                    net::spawn(endpoints, cli.fleet, Some(db_path), wake),
+                    options,
+                )?,
             };
-            let mut app = GsApp::new(db, link, options)?;
             Ok(Box::new(FnApp(move |ui: &mut egui::Ui| {
                 let now = start.elapsed().as_secs_f64();
                 let drawn = Instant::now();
@@ -123,6 +132,30 @@ fn main() -> anyhow::Result<()> {
         }),
     )
     .map_err(|e| anyhow::anyhow!("ground station window: {e}"))
+}
+
+/// The towers a replay shows, in memory: those the recording carries, else
+/// `--db`'s if that file exists (a recording made before recordings carried
+/// towers), else none.
+fn replay_database(
+    path: &std::path::Path,
+    cli: &Cli,
+) -> anyhow::Result<(LandmarkDb, Vec<recording::RecordedSample>)> {
+    let samples = recording::read(path)?;
+    let towers = match recording::landmarks(path, &samples)? {
+        Some(towers) => towers,
+        None if cli.db.is_file() => {
+            tracing::warn!(recording = %path.display(), db = %cli.db.display(), "the recording carries no towers: showing the database's");
+            LandmarkDb::open(&cli.db)?.list()?
+        }
+        None => {
+            tracing::warn!(recording = %path.display(), "the recording carries no towers and --db does not exist: no towers on the map");
+            Vec::new()
+        }
+    };
+    let mut db = LandmarkDb::open_in_memory()?;
+    db.upsert_all(&towers, &Author::now("replay"))?;
+    Ok((db, samples))
 }
 
 /// Opens the landmark database, importing `--import` first.

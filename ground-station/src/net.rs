@@ -23,8 +23,12 @@ use crate::recording::{ALIVE_DELETE, ALIVE_PUT, Recorder};
 pub enum NetCommand {
     /// Publish a correction to its UAV, reliably.
     Correct(IdCorrection),
-    /// Record every sample from now on into this MCAP file.
-    StartRecording(PathBuf),
+    /// Record every sample from now on into this MCAP file (never over an
+    /// existing one), the landmarks it starts with first.
+    StartRecording {
+        path: PathBuf,
+        landmarks: Vec<towernav_protocol::LandmarkRecord>,
+    },
     StopRecording,
 }
 
@@ -106,6 +110,7 @@ impl<W: Fn()> Listener<'_, W> {
         {
             self.recorder = None;
             self.send(NetEvent::Notice(format!("recording stopped: {e}")));
+            self.send(NetEvent::Recording(None));
         }
     }
 
@@ -134,6 +139,7 @@ impl<W: Fn()> Listener<'_, W> {
                 Err(e) => format!("recording did not finish cleanly: {e}"),
             };
             self.send(NetEvent::Notice(notice));
+            self.send(NetEvent::Recording(None));
         }
     }
 }
@@ -245,14 +251,19 @@ async fn command_done<W: Fn()>(
                 ))),
             }
         }
-        NetCommand::StartRecording(path) => {
+        NetCommand::StartRecording { path, landmarks } => {
             listener.finish_recording();
-            match Recorder::create(&path) {
+            match Recorder::create(&path)
+                .and_then(|mut rec| rec.write_landmarks(&landmarks, unix_ns()).map(|()| rec))
+            {
                 Ok(rec) => {
                     listener.recorder = Some(rec);
-                    listener.send(NetEvent::Notice(format!("recording to {}", path.display())))
+                    listener.send(NetEvent::Recording(Some(path)))
                 }
-                Err(e) => listener.send(NetEvent::Notice(format!("cannot record: {e}"))),
+                Err(e) => {
+                    listener.send(NetEvent::Notice(format!("cannot record: {e}")));
+                    listener.send(NetEvent::Recording(None))
+                }
             }
         }
         NetCommand::StopRecording => {

@@ -3,13 +3,18 @@
 //! so Foxglove or `mcap cat` can read a towernav session too.
 //!
 //! Liveliness is recorded on the `alive` key with the payload `put` or `delete`.
+//! The landmarks the recording started with go first, on [`LANDMARKS_CHANNEL`],
+//! so a replay shows the towers it was flown with, wherever it is opened.
+//!
+//! A replay is a [`ReplayPlayer`]: the recording and a clock the app moves
+//! each frame (paused, faster, sought), with no thread of its own.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use towernav_protocol::Keys;
+use towernav_protocol::{Keys, LandmarkRecord};
 
 use crate::events::{NetEvent, decode_alive, decode_sample};
 
@@ -20,6 +25,8 @@ pub enum RecordingError {
         path: PathBuf,
         source: std::io::Error,
     },
+    #[error("recording {path}: the landmarks snapshot: {reason}")]
+    Landmarks { path: PathBuf, reason: String },
     #[error("recording {path}: {source}")]
     Mcap {
         path: PathBuf,
@@ -30,6 +37,8 @@ pub enum RecordingError {
 /// Payloads of liveliness changes in a recording.
 pub const ALIVE_PUT: &[u8] = b"put";
 pub const ALIVE_DELETE: &[u8] = b"delete";
+/// The recording's own channel (not a network key) for the landmarks it started with.
+pub const LANDMARKS_CHANNEL: &str = "towernav-recording/landmarks";
 
 pub struct Recorder {
     writer: mcap::Writer<BufWriter<File>>,
@@ -39,8 +48,9 @@ pub struct Recorder {
 }
 
 impl Recorder {
+    /// A new recording at `path`; an existing file is refused, never overwritten.
     pub fn create(path: &Path) -> Result<Self, RecordingError> {
-        let file = File::create(path).map_err(|source| RecordingError::Io {
+        let file = File::create_new(path).map_err(|source| RecordingError::Io {
             path: path.into(),
             source,
         })?;
@@ -105,6 +115,19 @@ impl Recorder {
             .map_err(self.err())
     }
 
+    /// The landmarks in force, as JSON on [`LANDMARKS_CHANNEL`].
+    pub fn write_landmarks(
+        &mut self,
+        landmarks: &[LandmarkRecord],
+        log_time_ns: u64,
+    ) -> Result<(), RecordingError> {
+        let json = serde_json::to_vec(landmarks).map_err(|e| RecordingError::Landmarks {
+            path: self.path.clone(),
+            reason: e.to_string(),
+        })?;
+        self.write(LANDMARKS_CHANNEL, &json, log_time_ns)
+    }
+
     /// Writes the summary and index; a recording not finished is still readable up to its last chunk.
     pub fn finish(mut self) -> Result<u32, RecordingError> {
         self.writer.finish().map_err(self.err())?;
@@ -122,6 +145,9 @@ pub struct RecordedSample {
 impl RecordedSample {
     /// The event this sample stood for when it was live.
     pub fn event(&self) -> Option<NetEvent> {
+        if self.key == LANDMARKS_CHANNEL {
+            return None;
+        }
         if Keys::parse_alive(&self.key).is_ok() {
             return Some(decode_alive(&self.key, self.payload != ALIVE_DELETE));
         }
@@ -152,46 +178,107 @@ pub fn read(path: &Path) -> Result<Vec<RecordedSample>, RecordingError> {
     Ok(samples)
 }
 
-/// Plays a recording into the app at its recorded pace (`speed` times faster;
-/// 0 as fast as possible). The file is read, and refused, before the thread starts.
-pub fn spawn_replay(
+/// The landmarks a recording started with, if it carries them.
+pub fn landmarks(
     path: &Path,
-    speed: f64,
-    tx: std::sync::mpsc::Sender<NetEvent>,
-    wake: impl Fn() + Send + 'static,
-) -> Result<(), RecordingError> {
-    let samples = read(path)?;
-    let name = path.display().to_string();
-    let spawned = std::thread::Builder::new()
-        .name("towernav-gs-replay".into())
-        .spawn(move || {
-            let start = std::time::Instant::now();
-            let t0 = samples.first().map_or(0, |s| s.log_time_ns);
-            for s in &samples {
-                if speed > 0.0 {
-                    let due = (s.log_time_ns - t0) as f64 * 1e-9 / speed;
-                    let wait = due - start.elapsed().as_secs_f64();
-                    if wait > 0.0 {
-                        std::thread::sleep(std::time::Duration::from_secs_f64(wait));
-                    }
-                }
-                if let Some(event) = s.event()
-                    && tx.send(event).is_err()
-                {
-                    return;
-                }
-                wake();
+    samples: &[RecordedSample],
+) -> Result<Option<Vec<LandmarkRecord>>, RecordingError> {
+    samples
+        .iter()
+        .find(|s| s.key == LANDMARKS_CHANNEL)
+        .map(|s| {
+            serde_json::from_slice(&s.payload).map_err(|e| RecordingError::Landmarks {
+                path: path.into(),
+                reason: e.to_string(),
+            })
+        })
+        .transpose()
+}
+
+/// A recording played back on a clock the app moves (pure: wall time is
+/// passed in). Seeking back starts the events over: the app clears what it
+/// knew and the next [`ReplayPlayer::advance`] replays up to the new position.
+pub struct ReplayPlayer {
+    samples: Vec<RecordedSample>,
+    /// The next sample to hand out.
+    cursor: usize,
+    t0_ns: u64,
+    /// Recording time since its first message.
+    position_s: f64,
+    duration_s: f64,
+    /// 1 = as recorded; 0 = everything at once.
+    pub speed: f64,
+    pub paused: bool,
+    last_wall_s: Option<f64>,
+}
+
+impl ReplayPlayer {
+    pub fn new(samples: Vec<RecordedSample>, speed: f64) -> Self {
+        let t0_ns = samples.first().map_or(0, |s| s.log_time_ns);
+        let duration_s = samples
+            .last()
+            .map_or(0.0, |s| (s.log_time_ns - t0_ns) as f64 * 1e-9);
+        Self {
+            samples,
+            cursor: 0,
+            t0_ns,
+            position_s: 0.0,
+            duration_s,
+            speed,
+            paused: false,
+            last_wall_s: None,
+        }
+    }
+
+    /// Where the replay is, seconds into the recording: the app's clock while it replays.
+    pub fn position_s(&self) -> f64 {
+        self.position_s
+    }
+
+    pub fn duration_s(&self) -> f64 {
+        self.duration_s
+    }
+
+    pub fn finished(&self) -> bool {
+        self.cursor == self.samples.len()
+    }
+
+    /// Moves the clock by the wall time since the last call (times the speed,
+    /// unless paused) and returns the events now due, in order.
+    pub fn advance(&mut self, wall_s: f64) -> Vec<NetEvent> {
+        let dt = self
+            .last_wall_s
+            .map_or(0.0, |last| (wall_s - last).max(0.0));
+        self.last_wall_s = Some(wall_s);
+        if !self.paused {
+            self.position_s = if self.speed > 0.0 {
+                (self.position_s + dt * self.speed).min(self.duration_s)
+            } else {
+                self.duration_s
+            };
+        }
+        let mut due = Vec::new();
+        while let Some(s) = self.samples.get(self.cursor) {
+            if (s.log_time_ns - self.t0_ns) as f64 * 1e-9 > self.position_s {
+                break;
             }
-            let _ = tx.send(NetEvent::Notice(format!(
-                "replay of {name} finished ({} messages)",
-                samples.len()
-            )));
-            wake();
-        });
-    spawned.map(|_| ()).map_err(|source| RecordingError::Io {
-        path: path.into(),
-        source,
-    })
+            due.extend(s.event());
+            self.cursor += 1;
+        }
+        due
+    }
+
+    /// Jumps to `t_s` into the recording; true when that is backwards, and
+    /// the app must forget what it was shown before the next advance.
+    pub fn seek(&mut self, t_s: f64) -> bool {
+        let t_s = t_s.clamp(0.0, self.duration_s);
+        let back = t_s < self.position_s;
+        if back {
+            self.cursor = 0;
+        }
+        self.position_s = t_s;
+        back
+    }
 }
 
 #[cfg(test)]
@@ -227,6 +314,66 @@ mod tests {
         assert!(matches!(&events[0], NetEvent::Alive { alive: true, .. }));
         assert!(matches!(&events[2], NetEvent::Pose(p) if p.seq == 1));
         assert!(matches!(&events[4], NetEvent::Alive { alive: false, .. }));
+    }
+
+    #[test]
+    fn a_recording_carries_its_landmarks_and_never_overwrites_a_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("session.mcap");
+        let mut rec = Recorder::create(&path).expect("create");
+        rec.write_landmarks(&crate::test_support::towers(), 1)
+            .expect("landmarks");
+        rec.finish().expect("finish");
+        let samples = read(&path).expect("read");
+        let towers = landmarks(&path, &samples)
+            .expect("decodes")
+            .expect("carried");
+        assert_eq!(towers, crate::test_support::towers());
+        assert!(samples[0].event().is_none(), "not a network event");
+        let err = Recorder::create(&path).err().expect("exists");
+        assert!(err.to_string().contains("session.mcap"), "{err}");
+        assert_eq!(read(&path).expect("intact").len(), 1, "left as it was");
+    }
+
+    #[test]
+    fn the_player_pauses_speeds_up_and_seeks_back_to_replay_from_the_start() {
+        let samples: Vec<RecordedSample> = (0..10u64)
+            .map(|i| RecordedSample {
+                log_time_ns: 1_000_000_000 * (100 + i),
+                key: Keys::new(NodeId::new("demo").expect("valid"))
+                    .uav_key::<PoseEstimate>(&NodeId::new("uav1").expect("valid")),
+                payload: encode(&pose("uav1", 30.52, 114.36, i)).expect("encode"),
+            })
+            .collect();
+        let mut player = ReplayPlayer::new(samples, 1.0);
+        assert_eq!(player.duration_s(), 9.0);
+        let seqs = |events: Vec<NetEvent>| -> Vec<u64> {
+            events
+                .into_iter()
+                .filter_map(|e| match e {
+                    NetEvent::Pose(p) => Some(p.seq),
+                    _ => None,
+                })
+                .collect()
+        };
+        assert_eq!(seqs(player.advance(50.0)), [0]);
+        assert_eq!(seqs(player.advance(52.5)), [1, 2]);
+        player.paused = true;
+        assert!(seqs(player.advance(60.0)).is_empty(), "paused");
+        player.paused = false;
+        player.speed = 2.0;
+        assert_eq!(
+            seqs(player.advance(61.0)),
+            [3, 4],
+            "2 s of recording in 1 s"
+        );
+        assert!(player.seek(1.0), "backwards");
+        assert_eq!(seqs(player.advance(61.0)), [0, 1], "from the start again");
+        assert!(!player.seek(8.0));
+        assert_eq!(seqs(player.advance(61.0)), [2, 3, 4, 5, 6, 7, 8]);
+        assert_eq!(seqs(player.advance(100.0)), [9]);
+        assert!(player.finished());
+        assert_eq!(player.position_s(), 9.0, "stops at the end");
     }
 
     #[test]

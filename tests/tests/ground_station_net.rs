@@ -11,7 +11,9 @@ use towernav_ground_station::events::NetEvent;
 use towernav_ground_station::net::{self, NetCommand, NetLink};
 use towernav_ground_station::recording;
 use towernav_protocol::session::Endpoints;
-use towernav_protocol::{IdCorrection, Keys, NodeId, PoseEstimate, PoseMethod, TrackReport};
+use towernav_protocol::{
+    IdCorrection, Keys, LandmarkRecord, NodeId, PoseEstimate, PoseMethod, TrackReport,
+};
 
 fn pose(uav: &NodeId, seq: u64) -> PoseEstimate {
     PoseEstimate {
@@ -133,9 +135,23 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         None,
         || {},
     );
-    command(&link, NetCommand::StartRecording(mcap.clone()))?;
+    let towers = vec![LandmarkRecord::new(
+        "B1",
+        towernav_protocol::TowerType::B,
+        30.52,
+        114.36,
+        25.0,
+        35.0,
+    )];
+    command(
+        &link,
+        NetCommand::StartRecording {
+            path: mcap.clone(),
+            landmarks: towers.clone(),
+        },
+    )?;
     wait_for(&link.events, Duration::from_secs(5), |e| match e {
-        NetEvent::Notice(n) if n.starts_with("recording to") => Some(()),
+        NetEvent::Recording(Some(path)) if *path == mcap => Some(()),
         _ => None,
     })?;
     // The edge appears once the recording runs, so its arrival is in the file.
@@ -171,6 +187,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         _ => None,
     })?;
     let samples = recording::read(&mcap)?;
+    assert_eq!(recording::landmarks(&mcap, &samples)?, Some(towers));
     assert!(
         notice.contains(&format!("recorded {} messages", samples.len())),
         "{notice}"
