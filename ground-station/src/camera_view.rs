@@ -98,9 +98,34 @@ pub fn show(
             let live = link.is_live();
             let rect = frame(ui, state, preview, live);
             let scale = f64::from(rect.width()) / f64::from(preview.meta.frame_width.max(1));
-            let tracks = view.tracks_near(preview.meta.seq);
-            for track in tracks.iter().flat_map(|t| &t.tracks) {
-                if track_box(ui, track, rect, scale, live) {
+            let tracks: Vec<&Track> = view
+                .tracks_near(preview.meta.seq)
+                .iter()
+                .flat_map(|t| &t.tracks)
+                .collect();
+            let boxes: Vec<Rect> = tracks.iter().map(|t| screen_box(t, rect, scale)).collect();
+            let font = egui::FontId::proportional(12.0);
+            let sizes: Vec<egui::Vec2> = tracks
+                .iter()
+                .map(|t| {
+                    ui.painter()
+                        .layout_no_wrap(track_label(t), font.clone(), Color32::WHITE)
+                        .size()
+                })
+                .collect();
+            let labels = place_labels(&boxes, &sizes);
+            let picked = state
+                .picking
+                .as_ref()
+                .filter(|p| &p.uav == uav)
+                .map(|p| p.track_id);
+            for ((track, r), at) in tracks.iter().zip(&boxes).zip(&labels) {
+                let look = BoxLook {
+                    live,
+                    picked: picked == Some(track.track_id),
+                    label_at: *at,
+                };
+                if track_box(ui, track, *r, look) {
                     state.picking = Some(Picking {
                         uav: uav.clone(),
                         track_id: track.track_id,
@@ -117,7 +142,15 @@ pub fn show(
     }
     if let Some(pick) = state.picking.as_mut().filter(|p| &p.uav == uav) {
         ui.separator();
-        let (send, cancel) = picker(ui, pick, towers, corrections);
+        // The chosen tower may be bound to another track, which sending unbinds.
+        let holder = pick.choice.as_ref().and_then(|choice| {
+            view.tracks()?
+                .tracks
+                .iter()
+                .find(|t| t.tower_id.as_ref() == Some(choice) && t.track_id != pick.track_id)
+                .map(|t| t.track_id)
+        });
+        let (send, cancel) = picker(ui, pick, towers, corrections, holder);
         let done = send.is_some() || cancel;
         if let Some(tower) = send {
             action = Some(CameraAction::Send {
@@ -217,16 +250,59 @@ fn frame(ui: &mut egui::Ui, state: &CameraState, preview: &DecodedPreview, live:
     rect
 }
 
-/// One track's box and label over the frame at `scale` screen px per frame px
-/// (grey on a frame that is not live: no green "sure" box on old news); true
-/// when the operator clicked it.
-fn track_box(ui: &mut egui::Ui, track: &Track, frame: Rect, scale: f64, live: bool) -> bool {
+/// A track's box on screen, over the frame at `scale` screen px per frame px.
+fn screen_box(track: &Track, frame: Rect, scale: f64) -> Rect {
     let b = &track.bbox;
-    let r = Rect::from_min_max(
+    Rect::from_min_max(
         frame.min + vec2((b.left * scale) as f32, (b.top * scale) as f32),
         frame.min + vec2((b.right * scale) as f32, (b.bottom * scale) as f32),
-    );
-    let color = if live {
+    )
+}
+
+/// Where each box's label goes (its bottom-left corner): just above the box,
+/// or, where that would print over a label already placed (towers bunched
+/// near the horizon), stacked higher until it is clear.
+pub fn place_labels(boxes: &[Rect], sizes: &[egui::Vec2]) -> Vec<egui::Pos2> {
+    let mut order: Vec<usize> = (0..boxes.len()).collect();
+    // Lowest boxes first: the nearest towers keep their labels closest.
+    order.sort_by(|&a, &b| boxes[b].top().total_cmp(&boxes[a].top()));
+    let mut placed: Vec<Rect> = Vec::new();
+    let mut at = vec![egui::Pos2::ZERO; boxes.len()];
+    for i in order {
+        let size = sizes.get(i).copied().unwrap_or(egui::Vec2::ZERO);
+        let mut bottom_left = boxes[i].left_top() - vec2(0.0, 2.0);
+        for _ in 0..boxes.len() {
+            let label = Rect::from_min_size(bottom_left - vec2(0.0, size.y), size);
+            match placed.iter().find(|p| p.intersects(label)) {
+                Some(hit) => bottom_left.y = hit.top() - 1.0,
+                None => break,
+            }
+        }
+        placed.push(Rect::from_min_size(bottom_left - vec2(0.0, size.y), size));
+        at[i] = bottom_left;
+    }
+    at
+}
+
+/// How a box is drawn.
+struct BoxLook {
+    /// Grey on a frame that is not live: no green "sure" box on old news.
+    live: bool,
+    /// The box the correction picker is open for: drawn white and thick.
+    picked: bool,
+    label_at: egui::Pos2,
+}
+
+/// One track's box and its label; true when the operator clicked it.
+fn track_box(ui: &mut egui::Ui, track: &Track, r: Rect, look: BoxLook) -> bool {
+    let BoxLook {
+        live,
+        picked,
+        label_at,
+    } = look;
+    let color = if picked {
+        Color32::WHITE
+    } else if live {
         binding_color(track)
     } else {
         Color32::from_gray(140)
@@ -243,7 +319,13 @@ fn track_box(ui: &mut egui::Ui, track: &Track, frame: Rect, scale: f64, live: bo
             None => "unbound; click to bind".into(),
         });
     response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Button, true, &label));
-    let stroke = if response.hovered() { 3.0 } else { 2.0 };
+    let stroke = if picked {
+        4.0
+    } else if response.hovered() {
+        3.0
+    } else {
+        2.0
+    };
     ui.painter().rect_stroke(
         r,
         0.0,
@@ -251,7 +333,7 @@ fn track_box(ui: &mut egui::Ui, track: &Track, frame: Rect, scale: f64, live: bo
         egui::StrokeKind::Outside,
     );
     ui.painter().text(
-        r.left_top() - vec2(0.0, 2.0),
+        label_at,
         egui::Align2::LEFT_BOTTOM,
         &label,
         egui::FontId::proportional(12.0),
@@ -266,6 +348,7 @@ fn picker(
     pick: &mut Picking,
     towers: &[MapTower],
     corrections: &Corrections,
+    holder: Option<u64>,
 ) -> (Option<Option<String>>, bool) {
     ui.label(format!(
         "Correct track {} (now {})",
@@ -299,12 +382,19 @@ fn picker(
                 }
             }
         });
+    if let (Some(id), Some(other)) = (&pick.choice, holder) {
+        ui.colored_label(
+            Color32::YELLOW,
+            format!("{id} is bound to track {other}: sending unbinds it there"),
+        );
+    }
     let mut send = None;
     let mut cancel = false;
     ui.horizontal(|ui| {
-        let label = match &pick.choice {
-            Some(id) => format!("Send {id}"),
-            None => "Send".into(),
+        let label = match (&pick.choice, holder) {
+            (Some(id), Some(other)) => format!("Send {id} (unbinds T{other})"),
+            (Some(id), None) => format!("Send {id}"),
+            (None, _) => "Send".into(),
         };
         if ui
             .add_enabled(pick.choice.is_some(), egui::Button::new(label))
@@ -388,4 +478,33 @@ fn history(
         });
     }
     asked
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_of_bunched_boxes_are_stacked_clear_of_each_other() {
+        // Three towers side by side near the horizon, boxes overlapping.
+        let boxes = [
+            Rect::from_min_max(pos2(100.0, 200.0), pos2(110.0, 230.0)),
+            Rect::from_min_max(pos2(104.0, 201.0), pos2(114.0, 231.0)),
+            Rect::from_min_max(pos2(300.0, 200.0), pos2(310.0, 230.0)),
+        ];
+        let sizes = [vec2(40.0, 14.0); 3];
+        let at = place_labels(&boxes, &sizes);
+        let rects: Vec<Rect> = at
+            .iter()
+            .zip(&sizes)
+            .map(|(p, s)| Rect::from_min_size(*p - vec2(0.0, s.y), *s))
+            .collect();
+        assert!(!rects[0].intersects(rects[1]), "{rects:?}");
+        // The lone box keeps its label just above it.
+        assert_eq!(at[2], pos2(300.0, 198.0));
+        assert!(
+            at[0].y <= 199.0 && at[1].y <= 199.0,
+            "above their boxes: {at:?}"
+        );
+    }
 }

@@ -53,8 +53,14 @@ pub struct UavView {
     pub last_pose: Option<PoseEstimate>,
     /// When the last pose arrived, on the ground station's clock.
     pub last_pose_at_s: Option<f64>,
-    /// Arrival times of the poses in the last few seconds, for the rate.
-    pose_arrivals: VecDeque<f64>,
+    /// The edge's own times of its last few seconds of poses, for the rate: a
+    /// burst of poses queued across a reconnect arrives at once, but was
+    /// sent at the edge's pace.
+    pose_times: VecDeque<f64>,
+    /// Ground speed over the last second or more of poses, m/s.
+    pub speed_mps: Option<f64>,
+    /// The pose the speed is measured from: (edge time, east/north).
+    speed_from: Option<(f64, [f64; 2])>,
     /// East/north in the ground station's map frame; [`TRAIL_BREAK`] between
     /// stretches.
     pub trail: VecDeque<[f64; 2]>,
@@ -82,14 +88,15 @@ impl UavView {
             .or_else(|| self.tracks())
     }
 
-    /// Poses per second that arrived over the last two seconds.
-    pub fn pose_rate_hz(&self, now_s: f64) -> f64 {
-        let recent = self
-            .pose_arrivals
-            .iter()
-            .filter(|&&t| now_s - t <= RATE_WINDOW_S)
-            .count();
-        recent as f64 / RATE_WINDOW_S
+    /// Poses per second over the edge's last two seconds of poses (0 until
+    /// they span half a second).
+    pub fn pose_rate_hz(&self) -> f64 {
+        match (self.pose_times.front(), self.pose_times.back()) {
+            (Some(&first), Some(&last)) if last - first >= 0.5 => {
+                (self.pose_times.len() - 1) as f64 / (last - first)
+            }
+            _ => 0.0,
+        }
     }
 }
 
@@ -148,14 +155,28 @@ impl Fleet {
                 if (silent || restarted) && !view.trail.is_empty() {
                     push_bounded(&mut view.trail, TRAIL_BREAK);
                 }
+                if restarted {
+                    view.pose_times.clear();
+                    view.speed_from = None;
+                    view.speed_mps = None;
+                }
                 push_bounded(&mut view.trail, en);
-                view.pose_arrivals.push_back(now_s);
+                view.pose_times.push_back(p.time_s);
                 while view
-                    .pose_arrivals
+                    .pose_times
                     .front()
-                    .is_some_and(|&t| now_s - t > RATE_WINDOW_S)
+                    .is_some_and(|&t| p.time_s - t >= RATE_WINDOW_S)
                 {
-                    view.pose_arrivals.pop_front();
+                    view.pose_times.pop_front();
+                }
+                match view.speed_from {
+                    Some((t, from)) if p.time_s - t >= 1.0 => {
+                        let d = ((en[0] - from[0]).powi(2) + (en[1] - from[1]).powi(2)).sqrt();
+                        view.speed_mps = Some(d / (p.time_s - t));
+                        view.speed_from = Some((p.time_s, en));
+                    }
+                    Some(_) => {}
+                    None => view.speed_from = Some((p.time_s, en)),
                 }
                 view.last_pose = Some(p);
                 view.last_pose_at_s = Some(now_s);
@@ -289,25 +310,37 @@ mod tests {
     #[test]
     fn poses_build_a_trail_in_the_map_frame_an_age_and_a_rate() {
         let mut fleet = fleet();
-        for i in 0..30 {
+        // Three seconds of poses at 30 Hz, all arriving at once (queued
+        // across a reconnect): the rate is the edge's, not the burst's.
+        for i in 0..90u32 {
             fleet.apply(
-                NetEvent::Pose(pose("uav1", 30.52, 114.36 + 1e-5 * f64::from(i), 1)),
-                10.0 + f64::from(i) / 30.0,
+                NetEvent::Pose(pose(
+                    "uav1",
+                    30.52,
+                    114.36 + 1e-5 * f64::from(i),
+                    u64::from(i),
+                )),
+                10.0,
             );
         }
-        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.361, 2)), 11.0);
+        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.3609, 90)), 11.0);
         let uav = NodeId::new("uav1").expect("valid");
         let view = &fleet.uavs[&uav];
-        assert_eq!(view.trail.len(), 31);
+        assert_eq!(view.trail.len(), 91);
         let last = view.trail.back().expect("trail");
         assert!(
-            (last[0] - 96.0).abs() < 1.0,
-            "0.001 deg of longitude at 30.5 N is ~96 m: {}",
+            (last[0] - 86.4).abs() < 1.0,
+            "0.0009 deg of longitude at 30.5 N is ~86 m: {}",
             last[0]
         );
-        // 31 poses in the last second, counted over a two-second window.
-        assert!((view.pose_rate_hz(11.0) - 15.5).abs() < 1e-9);
-        assert_eq!(view.pose_rate_hz(20.0), 0.0);
+        assert!(
+            (view.pose_rate_hz() - 30.0).abs() < 1e-6,
+            "{}",
+            view.pose_rate_hz()
+        );
+        // 0.0003 deg of longitude (28.8 m) in each second.
+        let speed = view.speed_mps.expect("a speed");
+        assert!((speed - 28.8).abs() < 0.3, "{speed}");
         assert_eq!(fleet.pose_age_s(&uav, 13.5), Some(2.5));
         assert!(fleet.is_stale(&uav, 13.5));
         assert!(!fleet.is_stale(&uav, 12.0));

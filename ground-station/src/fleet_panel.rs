@@ -9,6 +9,9 @@ use towernav_protocol::{EdgeState, Health, NodeId, StatusHeartbeat};
 use crate::fleet::{Fleet, Link, UavView};
 use crate::map_view::uav_color;
 
+/// How long the panel waits for a first edge before saying the link may be wrong.
+pub const NOTHING_HEARD_S: f64 = 5.0;
+
 pub fn show(
     ui: &mut egui::Ui,
     fleet: &Fleet,
@@ -26,7 +29,17 @@ pub fn show(
         }
     }
     if fleet.uavs.is_empty() {
-        ui.label(format!("No UAV yet. Listening via {listening_on}"));
+        if now_s > NOTHING_HEARD_S {
+            ui.colored_label(
+                Color32::YELLOW,
+                format!(
+                    "Nothing heard from any edge for {now_s:.0} s via {listening_on}: \
+                     is the endpoint right, and is an edge running?"
+                ),
+            );
+        } else {
+            ui.label(format!("No UAV yet. Listening via {listening_on}"));
+        }
     }
     for (i, (uav, view)) in fleet.uavs.iter().enumerate() {
         ui.separator();
@@ -141,7 +154,7 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, now_s: f64) {
             let age = view.last_pose_at_s.map_or(0.0, |t| (now_s - t).max(0.0));
             ui.label(format!(
                 "{:.0} poses/s, last {age:.1} s ago",
-                view.pose_rate_hz(now_s)
+                view.pose_rate_hz()
             ));
         }
         Link::Waiting => {
@@ -153,8 +166,12 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, now_s: f64) {
         // The pose's yaw is counter-clockwise from east; a compass heading is
         // clockwise from north.
         let heading = (90.0 - p.yaw_rad.to_degrees()).rem_euclid(360.0);
+        let speed = view
+            .speed_mps
+            .map(|v| format!(", {v:.1} m/s"))
+            .unwrap_or_default();
         let text = format!(
-            "{:.6}, {:.6}  ±{sigma:.1} m\nheight {:.1} m above the WGS84 ellipsoid, heading {heading:.0} deg",
+            "{:.6}, {:.6}  ±{sigma:.1} m\nheight {:.1} m above the WGS84 ellipsoid\nheading {heading:.0} deg{speed}",
             p.lat_deg, p.lon_deg, p.alt_m
         );
         if link.is_live() {

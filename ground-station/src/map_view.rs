@@ -31,6 +31,14 @@ pub struct MapState {
     pub measure: Vec<[f64; 2]>,
     /// Half the width of the followed view, metres.
     follow_half_width_m: Option<f64>,
+    /// Where the pointer is over the map (east, north), if it is.
+    pub cursor: Option<[f64; 2]>,
+}
+
+/// The map's east/north point as latitude and longitude, for the readout under the pointer.
+pub fn cursor_text(datum: &towernav_geometry::Datum, en: [f64; 2]) -> String {
+    let g = datum.to_geodetic(&nalgebra::Point3::new(en[0], en[1], 0.0));
+    format!("cursor {:.6}, {:.6}", g.lat_deg, g.lon_deg)
 }
 
 /// Points of the ellipse `sigmas` standard deviations out, of a 2x2 east/north covariance.
@@ -100,6 +108,9 @@ pub fn show(
             let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
             ui.label(format!("distance {d:.1} m"));
         }
+        if let Some(en) = state.cursor {
+            ui.label(cursor_text(&fleet.datum, en));
+        }
     });
     let followed = selected
         .filter(|_| state.follow)
@@ -140,13 +151,13 @@ pub fn show(
                         .radius(3.0),
                 );
             }
-            if state.measuring && plot.response().clicked() {
-                plot.pointer_coordinate()
-            } else {
-                None
-            }
+            let pointer = plot.pointer_coordinate();
+            let clicked = state.measuring && plot.response().clicked();
+            (pointer, clicked)
         });
-    if let Some(p) = response.inner {
+    let (pointer, clicked) = response.inner;
+    state.cursor = pointer.map(|p| [p.x, p.y]);
+    if let Some(p) = pointer.filter(|_| clicked) {
         if state.measure.len() == 2 {
             state.measure.clear();
         }
@@ -287,6 +298,24 @@ fn draw_fleet(
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn the_cursor_reads_as_the_latitude_and_longitude_under_it() {
+        let datum = towernav_geometry::Datum::new(towernav_geometry::Geodetic {
+            lat_deg: 30.52,
+            lon_deg: 114.36,
+            height_m: 25.0,
+        });
+        // 111.3 m north is about 0.001 deg of latitude here.
+        assert_eq!(
+            cursor_text(&datum, [0.0, 0.0]),
+            "cursor 30.520000, 114.360000"
+        );
+        assert_eq!(
+            cursor_text(&datum, [0.0, 110.85]),
+            "cursor 30.521000, 114.360000"
+        );
+    }
 
     #[test]
     fn long_tracks_are_thinned_keeping_the_newest_point() {

@@ -178,3 +178,48 @@ fn a_correction_to_a_silent_uav_times_out_and_can_be_resent_or_cancelled() {
         2
     );
 }
+
+#[test]
+fn picking_a_tower_bound_to_another_track_says_so_before_sending() {
+    use towernav_geometry::PixelBox;
+    use towernav_protocol::{TowerType, Track, TrackReport};
+    let (tx, mut commands, mut harness, _now) = live();
+    let uav = NodeId::new("uav1").expect("valid");
+    let track = |id: u64, left: f64, tower: &str| Track {
+        track_id: id,
+        bbox: PixelBox::new(left, 200.0, left + 60.0, 400.0),
+        tower_type: TowerType::B,
+        tower_id: Some(tower.into()),
+        pinned: false,
+        confidence: Some(0.9),
+    };
+    tx.send(NetEvent::Tracks(TrackReport {
+        uav,
+        time_s: 5.0 / 30.0,
+        seq: 5,
+        tracks: vec![track(7, 600.0, "A1"), track(9, 900.0, "B1")],
+    }))
+    .expect("send");
+    harness.run();
+    harness.get_by_label("T7 A1").click();
+    harness.run();
+    harness.get_by_label("B1 (B)").click();
+    harness.run();
+    harness.run();
+    harness.get_by_label("B1 is bound to track 9: sending unbinds it there");
+    harness.get_by_label("Send B1 (unbinds T9)").click();
+    harness.run();
+    assert!(matches!(commands.try_recv(), Ok(NetCommand::Correct(c)) if c.track_id == 7));
+}
+
+#[test]
+fn an_endpoint_that_brings_nothing_is_called_out() {
+    let (_tx, _commands, app) = app();
+    let now = Rc::new(Cell::new(1.0));
+    let mut harness = harness(app, now.clone());
+    harness.run();
+    harness.get_by_label_contains("No UAV yet. Listening via");
+    now.set(12.0);
+    harness.run();
+    harness.get_by_label_contains("Nothing heard from any edge for 12 s via");
+}
