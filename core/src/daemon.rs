@@ -253,7 +253,11 @@ impl DaemonCore {
     pub fn handle_command(&mut self, now: Instant, command: Command) {
         match command {
             Command::Correct(c) => {
-                let result = self.pipeline.pin(c.track_id, c.tower_id.as_deref());
+                let result = if c.release {
+                    self.pipeline.release(c.track_id)
+                } else {
+                    self.pipeline.pin(c.track_id, c.tower_id.as_deref())
+                };
                 tracing::info!(track = c.track_id, tower = ?c.tower_id, ok = result.is_ok(), "operator correction");
                 self.outputs.push_back(Output::Ack(CorrectionAck {
                     uav: self.config.uav.clone(),

@@ -118,6 +118,7 @@ fn a_ten_second_camera_stall_still_beats_acks_and_takes_landmarks() {
             track_id: 99,
             tower_id: Some("T1".into()),
             issued_by: "operator".into(),
+            release: false,
         }),
     );
     let acks: Vec<_> = drain(&mut core)

@@ -97,6 +97,13 @@ impl Identity {
         }
     }
 
+    /// Ends an operator's pin: the track is unbound and the edge binds it
+    /// again by its own evidence from the next frame.
+    pub fn release(&mut self, track_id: u64) {
+        self.pinned.remove(&track_id);
+        self.bindings.remove(&track_id);
+    }
+
     /// Carries bindings over to a new landmark map: `new_index(old)` is a tower's index in it,
     /// `None` if the tower is gone (its tracks become unbound; their pins end).
     pub fn remap(&mut self, new_index: impl Fn(usize) -> Option<usize>) {
@@ -453,6 +460,36 @@ mod tests {
             || vec![0, 1, 2],
         );
         assert!(!identity.is_pinned(7));
+    }
+
+    #[test]
+    fn a_released_pin_goes_back_to_the_edges_own_binding() {
+        let camera = PinholeCamera::default_hd();
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: Attitude::level(0.0),
+        };
+        let map = map();
+        let tracks = [observe(&pose, &camera, &map, 0, 7)];
+        let view = || View {
+            guess: &pose,
+            trusted: false,
+            camera: &camera,
+            map: &map,
+        };
+        let mut identity = Identity::new(IdentityParams::default());
+        identity.pin(7, Some(2));
+        assert_eq!(
+            identity.update(&tracks, &[7], view(), || vec![0, 1, 2]),
+            [Some(2)]
+        );
+        identity.release(7);
+        assert!(!identity.is_pinned(7));
+        assert_eq!(
+            identity.update(&tracks, &[7], view(), || vec![0, 1, 2]),
+            [Some(0)],
+            "the tower it shows, by the edge's own evidence"
+        );
     }
 
     #[test]

@@ -148,6 +148,15 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Hands a live track back to the edge's own identity (see [`Identity::release`]).
+    pub fn release(&mut self, track_id: u64) -> Result<(), String> {
+        if !self.tracker.live_ids().contains(&track_id) {
+            return Err(format!("track {track_id} is not live"));
+        }
+        self.identity.release(track_id);
+        Ok(())
+    }
+
     /// Where the UAV is expected at `time_s`: the filter's prediction, else
     /// the newest position known (an estimate, or a hint).
     pub fn predicted_position(&self, time_s: f64) -> Option<Point3<f64>> {

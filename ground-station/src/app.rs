@@ -665,7 +665,11 @@ mod tests {
         harness.run();
         match commands.try_recv() {
             Ok(NetCommand::Correct(c)) => {
-                assert_eq!((c.track_id, c.tower_id.as_deref()), (7, Some("A1")));
+                // The edge had bound A1 itself: the undo hands the track back to it.
+                assert_eq!(
+                    (c.track_id, c.tower_id.as_deref(), c.release),
+                    (7, None, true)
+                );
                 tx.send(NetEvent::Ack(CorrectionAck {
                     uav,
                     request_id: c.request_id,

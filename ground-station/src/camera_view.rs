@@ -5,7 +5,7 @@
 use egui::{Color32, Rect, Sense, Stroke, pos2, vec2};
 use towernav_protocol::{NodeId, Track};
 
-use crate::corrections::{ANSWER_TIMEOUT_S, CorrectionState, Corrections};
+use crate::corrections::{ANSWER_TIMEOUT_S, Before, CorrectionState, Corrections};
 use crate::events::DecodedPreview;
 use crate::fleet::{Link, UavView};
 use crate::map_view::MapTower;
@@ -17,6 +17,8 @@ pub struct Picking {
     pub track_id: u64,
     /// The track's binding when it was clicked.
     pub current: Option<String>,
+    /// Whether that binding was an operator's pin.
+    pub current_pinned: bool,
     pub search: String,
     pub choice: Option<String>,
 }
@@ -35,7 +37,7 @@ pub enum CameraAction {
         uav: NodeId,
         track_id: u64,
         tower: Option<String>,
-        previous: Option<String>,
+        previous: Before,
     },
     Undo(u64),
     /// Send an unanswered correction again.
@@ -130,6 +132,7 @@ pub fn show(
                         uav: uav.clone(),
                         track_id: track.track_id,
                         current: track.tower_id.clone(),
+                        current_pinned: track.pinned,
                         search: String::new(),
                         choice: None,
                     });
@@ -157,7 +160,10 @@ pub fn show(
                 uav: pick.uav.clone(),
                 track_id: pick.track_id,
                 tower,
-                previous: pick.current.clone(),
+                previous: Before {
+                    tower: pick.current.clone(),
+                    pinned: pick.current_pinned,
+                },
             });
         }
         if done {

@@ -28,10 +28,21 @@ pub struct SentCorrection {
     pub message: IdCorrection,
     /// The track's binding before this correction: what an undo restores.
     pub previous: Option<String>,
+    /// Whether that binding was an operator's pin; if not, an undo hands the
+    /// track back to the edge instead of pinning it.
+    pub previous_pinned: bool,
     pub state: CorrectionState,
     pub sent_at_s: f64,
     /// Whether this one undid an earlier correction (which cannot be undone twice).
     pub undone: bool,
+}
+
+/// A track's binding when the operator chose to correct it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Before {
+    pub tower: Option<String>,
+    /// Pinned by an operator, rather than bound by the edge.
+    pub pinned: bool,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -57,7 +68,7 @@ impl Corrections {
         uav: &NodeId,
         track_id: u64,
         tower_id: Option<String>,
-        previous: Option<String>,
+        before: Before,
         issued_by: &str,
         now_s: f64,
     ) -> IdCorrection {
@@ -67,12 +78,14 @@ impl Corrections {
             track_id,
             tower_id,
             issued_by: issued_by.to_owned(),
+            release: false,
         };
         self.next_request_id += 1;
         self.sent.push(SentCorrection {
             number: self.sent.len() as u64 + 1,
             message: message.clone(),
-            previous,
+            previous: before.tower,
+            previous_pinned: before.pinned,
             state: CorrectionState::Pending,
             sent_at_s: now_s,
             undone: false,
@@ -80,8 +93,9 @@ impl Corrections {
         message
     }
 
-    /// Undoes an accepted correction: pins the track back to what it was
-    /// bound to before. `None` if there is nothing to undo.
+    /// Undoes an accepted correction: pins the track back to what an
+    /// operator had pinned it to, or hands it back to the edge when the edge
+    /// had bound it itself. `None` if there is nothing to undo.
     pub fn undo(&mut self, request_id: u64, issued_by: &str, now_s: f64) -> Option<IdCorrection> {
         let entry = self
             .sent
@@ -91,15 +105,24 @@ impl Corrections {
             return None;
         }
         entry.undone = true;
-        let (uav, track, restore, current) = (
+        let (uav, track, restore, pinned, current) = (
             entry.message.uav.clone(),
             entry.message.track_id,
             entry.previous.clone(),
+            entry.previous_pinned,
             entry.message.tower_id.clone(),
         );
-        let message = self.issue(&uav, track, restore, current, issued_by, now_s);
+        let release = !pinned;
+        let before = Before {
+            tower: current,
+            pinned: true,
+        };
+        let restore = if release { None } else { restore };
+        let mut message = self.issue(&uav, track, restore, before, issued_by, now_s);
+        message.release = release;
         if let Some(last) = self.sent.last_mut() {
             last.undone = true; // An undo is not itself undone.
+            last.message.release = release;
         }
         Some(message)
     }
@@ -124,16 +147,22 @@ impl Corrections {
                 )
         })?;
         entry.state = CorrectionState::Cancelled;
-        let (uav, track, tower, previous, undone) = (
+        let (uav, track, tower, release, undone) = (
             entry.message.uav.clone(),
             entry.message.track_id,
             entry.message.tower_id.clone(),
-            entry.previous.clone(),
+            entry.message.release,
             entry.undone,
         );
-        let message = self.issue(&uav, track, tower, previous, issued_by, now_s);
+        let before = Before {
+            tower: entry.previous.clone(),
+            pinned: entry.previous_pinned,
+        };
+        let mut message = self.issue(&uav, track, tower, before, issued_by, now_s);
+        message.release = release;
         if let Some(last) = self.sent.last_mut() {
             last.undone = undone;
+            last.message.release = release;
         }
         Some(message)
     }
@@ -200,10 +229,17 @@ mod tests {
         }
     }
 
+    fn pinned(tower: &str) -> Before {
+        Before {
+            tower: Some(tower.into()),
+            pinned: true,
+        }
+    }
+
     #[test]
     fn a_correction_goes_pending_then_accepted_and_undo_restores_the_old_binding() {
         let mut c = Corrections::starting_at(100);
-        let m = c.issue(&uav(), 7, Some("B2".into()), Some("B1".into()), "op", 1.0);
+        let m = c.issue(&uav(), 7, Some("B2".into()), pinned("B1"), "op", 1.0);
         assert_eq!(m.request_id, 100);
         assert!(c.pending_for(&uav(), 7).is_some());
         assert_eq!(
@@ -217,17 +253,37 @@ mod tests {
 
         let undo = c.undo(100, "op", 3.0).expect("undo");
         assert_eq!(
-            (undo.request_id, undo.track_id, undo.tower_id.as_deref()),
-            (101, 7, Some("B1"))
+            (
+                undo.request_id,
+                undo.track_id,
+                undo.tower_id.as_deref(),
+                undo.release
+            ),
+            (101, 7, Some("B1"), false),
+            "an operator's earlier pin is pinned again"
         );
         assert_eq!(c.undo(100, "op", 4.0), None, "undone once only");
         assert_eq!(c.undo(101, "op", 4.0), None, "an undo is not undone");
     }
 
     #[test]
+    fn undoing_a_correction_of_the_edges_own_binding_hands_the_track_back() {
+        let mut c = Corrections::starting_at(1);
+        let edge_bound = Before {
+            tower: Some("B1".into()),
+            pinned: false,
+        };
+        c.issue(&uav(), 7, Some("B2".into()), edge_bound, "op", 1.0);
+        c.acknowledged(&ack(1, true, None));
+        let undo = c.undo(1, "op", 2.0).expect("undo");
+        assert!(undo.release, "not pinned to B1: released to the edge");
+        assert_eq!(undo.tower_id, None);
+    }
+
+    #[test]
     fn an_unanswered_correction_times_out_then_resends_or_cancels_and_a_late_answer_counts() {
         let mut c = Corrections::starting_at(1_764_000_000_000);
-        c.issue(&uav(), 7, Some("B2".into()), Some("B1".into()), "op", 10.0);
+        c.issue(&uav(), 7, Some("B2".into()), pinned("B1"), "op", 10.0);
         c.expire(10.0 + ANSWER_TIMEOUT_S - 0.1);
         assert_eq!(c.sent[0].state, CorrectionState::Pending);
         c.expire(10.0 + ANSWER_TIMEOUT_S + 0.1);
@@ -254,7 +310,7 @@ mod tests {
     #[test]
     fn a_rejection_keeps_its_reason_and_acks_for_others_are_ignored() {
         let mut c = Corrections::starting_at(1);
-        c.issue(&uav(), 7, Some("Z9".into()), None, "op", 0.0);
+        c.issue(&uav(), 7, Some("Z9".into()), Before::default(), "op", 0.0);
         c.acknowledged(&CorrectionAck {
             uav: NodeId::new("other").expect("valid"),
             ..ack(1, true, None)

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use clap::Parser;
-use towernav_ground_station::app::{GsApp, GsOptions};
+use towernav_ground_station::app::{GsApp, GsOptions, Tab};
 use towernav_ground_station::net::{self, NetLink};
 use towernav_ground_station::recording::{self, ReplayPlayer};
 use towernav_landmark_db::{Author, LandmarkDb, import_csv};
@@ -44,6 +44,9 @@ struct Cli {
     /// Replay speed (1 = as recorded, 0 = as fast as possible).
     #[arg(long, default_value_t = 1.0)]
     replay_speed: f64,
+    /// The tab the window opens on.
+    #[arg(long, default_value = "map", value_parser = ["map", "landmarks", "history"])]
+    tab: String,
     /// Close the window after this many seconds (screenshots, benchmarks).
     #[arg(long)]
     quit_after_s: Option<f64>,
@@ -82,6 +85,7 @@ fn main() -> anyhow::Result<()> {
     let db_path = cli.db.clone();
     let start = Instant::now();
     let continuous = cli.continuous;
+    let tab = cli.tab.clone();
     let mut exit = Exit {
         quit_after_s: cli.quit_after_s,
         screenshot: cli.screenshot.clone(),
@@ -114,6 +118,11 @@ fn main() -> anyhow::Result<()> {
                     net::spawn(endpoints, cli.fleet, Some(db_path), wake),
                     options,
                 )?,
+            };
+            app.tab = match tab.as_str() {
+                "landmarks" => Tab::Landmarks,
+                "history" => Tab::History,
+                _ => Tab::Map,
             };
             Ok(Box::new(FnApp(move |ui: &mut egui::Ui| {
                 let now = start.elapsed().as_secs_f64();

@@ -136,6 +136,11 @@ pub struct IdCorrection {
     pub track_id: u64,
     pub tower_id: Option<String>,
     pub issued_by: String,
+    /// Hand the track back to the edge's own identity: the operator's pin is
+    /// dropped and `tower_id` ignored (an undo of a correction of a track the
+    /// edge had bound itself). Absent in older senders' messages: false.
+    #[serde(default)]
+    pub release: bool,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

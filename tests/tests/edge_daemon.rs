@@ -244,6 +244,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
             track_id: bound.track_id,
             tower_id: Some(tower.to_string()),
             issued_by: "test".into(),
+            release: false,
         };
         let key = keys.uav_key::<IdCorrection>(&uav);
         let gs = gs.clone();

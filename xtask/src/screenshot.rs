@@ -1,10 +1,12 @@
 //! `cargo xtask screenshot`: the ground station's real window under Xvfb,
-//! connected to a demo edge on loopback, saved as `docs/ground-station.png`.
+//! connected to a demo edge on loopback: `docs/ground-station.png` live,
+//! `docs/link-lost.png` after the edge was stopped, `docs/landmark-editor.png`
+//! on the Landmarks tab.
 //!
 //! Xvfb comes from Debian's `xvfb` package, installed when missing.
 
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, bail};
 
@@ -33,7 +35,37 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     ] {
         let _ = std::fs::remove_file(stale);
     }
-    let mut edge = Command::new(bin.join("towernav-edge"))
+    std::fs::create_dir_all(root.join("docs"))?;
+    let docs = root.join("docs");
+    // Live, then with the edge stopped half-way (the link-lost state), then the editor.
+    for (name, tab, edge_for_s, total_s) in [
+        ("ground-station.png", "map", seconds, seconds),
+        ("link-lost.png", "map", seconds, seconds + 8.0),
+        ("landmark-editor.png", "landmarks", seconds, seconds),
+    ] {
+        let out = docs.join(name);
+        let edge = start_edge(&bin, &towers)?;
+        let gs = Command::new("xvfb-run")
+            .args(["-a", "-s", "-screen 0 1600x900x24"])
+            .arg(bin.join("towernav-gs"))
+            .arg("--db")
+            .arg(&db)
+            .arg("--import")
+            .arg(&towers)
+            .args(["--connect", EDGE_ENDPOINT, "--tab", tab])
+            .arg("--screenshot")
+            .arg(&out)
+            .args(["--quit-after-s", &total_s.to_string()])
+            .spawn()
+            .context("starting xvfb-run (the xvfb package)")?;
+        shoot(edge, gs, edge_for_s, &out)?;
+    }
+    Ok(())
+}
+
+/// The demo edge, flying paper path 1 in real time with the oracle detector.
+fn start_edge(bin: &Path, towers: &Path) -> anyhow::Result<Child> {
+    Command::new(bin.join("towernav-edge"))
         .args([
             "demo",
             "--detector",
@@ -46,26 +78,30 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
             EDGE_ENDPOINT,
         ])
         .arg("--landmarks")
-        .arg(&towers)
+        .arg(towers)
         .stdout(Stdio::null())
         .spawn()
-        .context("starting the demo edge")?;
-    let out = root.join("docs").join("ground-station.png");
-    std::fs::create_dir_all(root.join("docs"))?;
-    let shot = run(Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1600x900x24"])
-        .arg(bin.join("towernav-gs"))
-        .arg("--db")
-        .arg(&db)
-        .arg("--import")
-        .arg(&towers)
-        .args(["--connect", EDGE_ENDPOINT])
-        .arg("--screenshot")
-        .arg(&out)
-        .args(["--quit-after-s", &seconds.to_string()]));
-    let _ = edge.kill();
-    let _ = edge.wait();
-    shot?;
+        .context("starting the demo edge")
+}
+
+/// Stops the edge after `edge_for_s`, waits for the window's screenshot.
+fn shoot(mut edge: Child, mut gs: Child, edge_for_s: f64, out: &Path) -> anyhow::Result<()> {
+    let started = std::time::Instant::now();
+    loop {
+        if started.elapsed().as_secs_f64() >= edge_for_s {
+            let _ = edge.kill();
+            let _ = edge.wait();
+        }
+        if let Some(status) = gs.try_wait()? {
+            let _ = edge.kill();
+            let _ = edge.wait();
+            if !status.success() {
+                bail!("the ground station exited with {status}");
+            }
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
     if !out.exists() {
         bail!("the ground station quit without writing {}", out.display());
     }
