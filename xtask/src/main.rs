@@ -77,6 +77,10 @@ enum Task {
         /// leaves out the images that hold it). Repeatable.
         #[arg(long)]
         map: Vec<String>,
+        /// The training folder (dataset, mixed dataset, run); default
+        /// `target/train`. One per model: two runs never share one.
+        #[arg(long)]
+        work: Option<PathBuf>,
         /// Write the finished run's model card (run after training by itself).
         #[arg(long, hide = true)]
         card: bool,
@@ -226,6 +230,7 @@ fn main() -> anyhow::Result<()> {
             data_names,
             names,
             map,
+            work,
             card,
         } => train::train(
             &root,
@@ -248,6 +253,7 @@ fn main() -> anyhow::Result<()> {
                     map,
                 },
                 card,
+                work,
             },
             ort.as_deref(),
         ),

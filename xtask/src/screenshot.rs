@@ -39,9 +39,9 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     let docs = root.join("docs");
     // Live, then with the edge stopped half-way (the link-lost state), then the editor.
     for (name, tab, edge_for_s, total_s) in [
-        ("ground-station.png", "map", seconds, seconds),
+        ("ground-station.png", "map", f64::INFINITY, seconds),
         ("link-lost.png", "map", seconds, seconds + 8.0),
-        ("landmark-editor.png", "landmarks", seconds, seconds),
+        ("landmark-editor.png", "landmarks", f64::INFINITY, seconds),
     ] {
         let out = docs.join(name);
         let edge = start_edge(&bin, &towers)?;
@@ -84,7 +84,8 @@ fn start_edge(bin: &Path, towers: &Path) -> anyhow::Result<Child> {
         .context("starting the demo edge")
 }
 
-/// Stops the edge after `edge_for_s`, waits for the window's screenshot.
+/// Stops the edge after `edge_for_s` (never, for a live picture: the window
+/// starts later than this clock), waits for the window's screenshot.
 fn shoot(mut edge: Child, mut gs: Child, edge_for_s: f64, out: &Path) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     loop {

@@ -48,6 +48,7 @@ pub struct TrainOptions {
     pub init: Option<PathBuf>,
     pub mix: MixOptions,
     pub card: bool,
+    pub work: Option<PathBuf>,
 }
 
 /// Labelled images mixed with the rendered frames (`training/mix.py`).
@@ -59,7 +60,12 @@ pub struct MixOptions {
 }
 
 pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow::Result<()> {
-    let work = target_dir(root).join("train");
+    let work = options
+        .work
+        .clone()
+        .unwrap_or_else(|| target_dir(root).join("train"));
+    let work = std::path::absolute(&work)
+        .with_context(|| format!("the training folder {}", work.display()))?;
     let run_dir = work.join("run");
     if options.ship {
         return ship(root, &run_dir, &work.join("types"));
@@ -115,7 +121,7 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
     let mut cmd = Command::new("nice");
     // After a mixed run, the model card: this same xtask binary, `train --card`.
     let card_step = if mixing {
-        r#" && "$TOWERNAV_XTASK" train --card"#
+        r#" && "$TOWERNAV_XTASK" train --card --work "$TOWERNAV_TRAIN_WORK""#
     } else {
         ""
     };
@@ -135,11 +141,12 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
         .args(quantize_args(&work, &dataset, !detector_only))
         .env("OMP_WAIT_POLICY", "PASSIVE")
         .env("TOWERNAV_XTASK", std::env::current_exe()?)
+        .env("TOWERNAV_TRAIN_WORK", &work)
         .current_dir(root);
     if options.foreground {
         return run(&mut cmd);
     }
-    spawn_in_background(cmd, &work, &pid_file, options.hours)
+    spawn_in_background(cmd, &work, &pid_file, options.hours, mixing)
 }
 
 /// The simulator's training set: `options.worlds` random worlds, randomized as asked.
@@ -211,6 +218,7 @@ fn spawn_in_background(
     work: &Path,
     pid_file: &Path,
     hours: f64,
+    mixed: bool,
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(work)?;
     let log_path = work.join("train.log");
@@ -228,10 +236,17 @@ fn spawn_in_background(
         .spawn()
         .with_context(|| format!("starting {cmd:?}"))?;
     std::fs::write(pid_file, child.id().to_string())?;
+    let done = if mixed {
+        format!(
+            "When it has finished, {} holds the model and MODEL_CARD.md (its score on your held-out frames).",
+            work.join("run").display()
+        )
+    } else {
+        "Run `cargo xtask train --ship` when it has finished to copy the model into models/.".into()
+    };
     eprintln!(
         "xtask: training in the background (pid {}), budget {} h; follow with `tail -f {}`.\n\
-         Run `cargo xtask train` again after an interruption to resume from the last checkpoint,\n\
-         and `cargo xtask train --ship` when it has finished to copy the model into models/.",
+         Run the same command again after an interruption to resume from the last checkpoint.\n{done}",
         child.id(),
         hours,
         log_path.display()
