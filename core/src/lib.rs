@@ -19,6 +19,7 @@ pub mod flight_record;
 pub mod identity;
 pub mod landmarks;
 pub mod localizer;
+pub mod log_limit;
 pub mod pipeline;
 pub mod replica;
 pub mod survey_labels;
@@ -27,6 +28,8 @@ pub mod wire;
 
 #[cfg(test)]
 mod fixtures;
+#[cfg(test)]
+mod pipeline_tests;
 
 pub use landmarks::{LandmarkMap, MapTower, TypeMatch, TypeMismatch, match_types};
 pub use pipeline::{BoundTrack, FrameOutput, Pipeline, PipelineConfig};

@@ -99,6 +99,23 @@ pub struct Pipeline {
     /// The newest position estimate: the pose guess when the filter has none
     /// (no filter, or lost after an outage). Better than the take-off point.
     last_known: Option<Point3<f64>>,
+    /// Each live track's type as last seen: a correction must agree with it.
+    track_types: std::collections::HashMap<u64, TowerType>,
+}
+
+/// How much of an outside id a refusal repeats: a reason names what it
+/// refused, it does not echo a 64 KiB payload back.
+pub const ECHO_MAX_CHARS: usize = 40;
+
+/// `id` quoted for a refusal reason, cut to [`ECHO_MAX_CHARS`].
+pub fn quoted(id: &str) -> String {
+    let mut chars = id.chars();
+    let head: String = chars.by_ref().take(ECHO_MAX_CHARS).collect();
+    if chars.next().is_none() {
+        format!("{head:?}")
+    } else {
+        format!("{head:?}... ({} bytes)", id.len())
+    }
 }
 
 impl Pipeline {
@@ -113,6 +130,7 @@ impl Pipeline {
             map,
             prev_attitude: None,
             last_known: None,
+            track_types: std::collections::HashMap::new(),
         }
     }
 
@@ -140,10 +158,21 @@ impl Pipeline {
             Some(id) => Some(
                 self.map
                     .index_of(id)
-                    .ok_or_else(|| format!("tower {id:?} is not in the landmark map"))?,
+                    .ok_or_else(|| format!("tower {} is not in the landmark map", quoted(id)))?,
             ),
             None => None,
         };
+        // The detector's type is evidence too: a B track is not an A tower.
+        if let (Some(t), Some(seen)) = (tower, self.track_types.get(&track_id)) {
+            let tower = &self.map.towers[t];
+            if tower.tower_type != *seen {
+                return Err(format!(
+                    "track {track_id} is a type {seen} tower, and {} is a type {}",
+                    quoted(&tower.id),
+                    tower.tower_type
+                ));
+            }
+        }
         self.identity.pin(track_id, tower);
         Ok(())
     }
@@ -241,6 +270,7 @@ impl Pipeline {
         if let Some(e) = &mut estimate {
             e.position_in_world -= lever;
         }
+        self.track_types = tracks.iter().map(|t| (t.track_id, t.tower_type)).collect();
         let tracks = tracks
             .into_iter()
             .zip(bindings)

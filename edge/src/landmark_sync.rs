@@ -29,6 +29,8 @@ pub struct LandmarkSync {
     replica: Replica,
     changes: Subscriber<FifoChannelHandler<Sample>>,
     timeout: Duration,
+    /// Undecodable changes are warned about at most every ten seconds.
+    garbage: towernav_core::log_limit::LogLimiter,
 }
 
 impl LandmarkSync {
@@ -53,6 +55,7 @@ impl LandmarkSync {
             replica,
             changes,
             timeout,
+            garbage: Default::default(),
         };
         let source = if sync.query().await? {
             Source::GroundStation
@@ -107,7 +110,9 @@ impl LandmarkSync {
                     }
                 },
                 Err(e) => {
-                    tracing::warn!(key = %sample.key_expr(), error = %e, "undecodable landmark change")
+                    if let Some(held_back) = self.garbage.allow(std::time::Instant::now()) {
+                        tracing::warn!(key = %sample.key_expr(), error = %e, held_back, "undecodable landmark change");
+                    }
                 }
             }
         }

@@ -51,6 +51,8 @@ pub struct EdgeNode {
     preview: Publisher<'static>,
     truth: Publisher<'static>,
     corrections: Subscriber<FifoChannelHandler<Sample>>,
+    /// Undecodable corrections are warned about at most every ten seconds.
+    garbage: std::sync::Mutex<towernav_core::log_limit::LogLimiter>,
     _alive: LivelinessToken,
 }
 
@@ -110,6 +112,7 @@ impl EdgeNode {
             preview,
             truth,
             corrections,
+            garbage: std::sync::Mutex::default(),
             _alive: alive,
         })
     }
@@ -182,7 +185,14 @@ impl EdgeNode {
                 None
             }
             Err(e) => {
-                tracing::warn!(key = %sample.key_expr(), error = %e, "undecodable correction");
+                let allowed = self
+                    .garbage
+                    .lock()
+                    .map(|mut l| l.allow(std::time::Instant::now()))
+                    .unwrap_or(Some(0));
+                if let Some(held_back) = allowed {
+                    tracing::warn!(key = %sample.key_expr(), error = %e, held_back, "undecodable correction");
+                }
                 None
             }
         }

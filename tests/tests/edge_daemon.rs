@@ -230,13 +230,14 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
             break t.clone();
         }
     };
+    // Another tower of the track's type: one of another type would be refused.
     let other = Scenario::paper(11)
         .world
         .landmarks()
         .into_iter()
+        .find(|r| Some(&r.id) != bound.tower_id.as_ref() && r.tower_type == bound.tower_type)
         .map(|r| r.id)
-        .find(|id| Some(id) != bound.tower_id.as_ref())
-        .ok_or_else(|| anyhow::anyhow!("a second tower"))?;
+        .ok_or_else(|| anyhow::anyhow!("a second tower of type {}", bound.tower_type))?;
     let send = |request_id: u64, tower: &str| {
         let correction = IdCorrection {
             uav: uav.clone(),
