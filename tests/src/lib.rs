@@ -54,6 +54,22 @@ pub fn pymavlink() -> Option<std::ffi::OsString> {
     }
 }
 
+/// A Python module by name from `TOWERNAV_PYTHONPATH` (as [`pymavlink`]
+/// finds it): that path, or `None` where it is missing and nobody asked for it.
+pub fn python_module(module: &str) -> Option<std::ffi::OsString> {
+    let path = std::env::var_os("TOWERNAV_PYTHONPATH");
+    let found = std::process::Command::new("python3")
+        .args(["-c", &format!("import {module}")])
+        .env("PYTHONPATH", path.clone().unwrap_or_default())
+        .status()
+        .is_ok_and(|s| s.success());
+    match (found, path) {
+        (true, path) => Some(path.unwrap_or_default()),
+        (false, Some(path)) => panic!("{module} is not importable from {path:?}"),
+        (false, None) => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,4 +17,5 @@ mod pipeline;
 mod replay;
 mod sim_source;
 mod tracking;
+mod training_mix;
 mod video_source;

@@ -171,13 +171,23 @@ fn install(root: &Path, task: &Task) -> anyhow::Result<Option<PathBuf>> {
 /// The pymavlink release the tests decode with (its dialects know
 /// GLOBAL_POSITION_SENSOR and ODOMETRY's quality).
 const PYMAVLINK_VERSION: &str = "2.4.50";
+/// PyYAML, for the training data mixer's test.
+const PYYAML_VERSION: &str = "6.0.3";
 
 /// `.pydeps/` under the workspace, holding pymavlink from the Python package
 /// index; the tests find it through `TOWERNAV_PYTHONPATH`.
 fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
     let dir = root.join(".pydeps");
-    let marker = dir.join(format!("pymavlink-{PYMAVLINK_VERSION}.dist-info"));
-    if marker.exists() {
+    // PyYAML beside it: the training data mixer's test reads data.yaml files.
+    let installed = |name: &str, version: &str| {
+        let want = format!("{name}-{version}.dist-info").to_lowercase();
+        std::fs::read_dir(&dir).is_ok_and(|entries| {
+            entries
+                .flatten()
+                .any(|e| e.file_name().to_string_lossy().to_lowercase() == want)
+        })
+    };
+    if installed("pymavlink", PYMAVLINK_VERSION) && installed("pyyaml", PYYAML_VERSION) {
         return Ok(());
     }
     run(Command::new("python3")
@@ -191,8 +201,12 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
             "--target",
         ])
         .arg(&dir)
-        .arg(format!("pymavlink=={PYMAVLINK_VERSION}")))?;
-    eprintln!("xtask: pymavlink {PYMAVLINK_VERSION} in {}", dir.display());
+        .arg(format!("pymavlink=={PYMAVLINK_VERSION}"))
+        .arg(format!("pyyaml=={PYYAML_VERSION}")))?;
+    eprintln!(
+        "xtask: pymavlink {PYMAVLINK_VERSION} and PyYAML {PYYAML_VERSION} in {}",
+        dir.display()
+    );
     Ok(())
 }
 
