@@ -136,6 +136,7 @@ impl DemoRun {
         let session = open_session(&Endpoints {
             listen: vec![],
             connect: vec![connect],
+            ..Default::default()
         })
         .await?;
         let collector = PoseCollector::start(&session, fleet.clone()).await?;

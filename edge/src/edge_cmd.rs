@@ -18,6 +18,7 @@ use towernav_core::wire::pose_method;
 use towernav_core::{LandmarkMap, TypeMatch, match_types};
 use towernav_geometry::{Datum, Geodetic, PinholeCamera};
 use towernav_onnx::{DetectorOptions, YoloDetector};
+use towernav_protocol::security::Credentials;
 use towernav_protocol::session::Endpoints;
 use towernav_protocol::{LandmarkRecord, NodeId, TowerType};
 use zenoh::Session;
@@ -250,9 +251,23 @@ fn frame_of(
 }
 
 async fn open_zenoh(config: &EdgeConfig) -> anyhow::Result<Session> {
+    let security = match &config.zenoh.credentials {
+        Some(dir) => {
+            let credentials = Credentials::load_edge(dir, &config.uav)?;
+            tracing::info!(node = credentials.name(), credentials = %dir.display(), "zenoh: mutual TLS, fleet access rules");
+            Some(credentials)
+        }
+        None => {
+            tracing::info!(
+                "zenoh: plain TCP, no credentials (loopback and tests only; see `towernav-fleet`)"
+            );
+            None
+        }
+    };
     let endpoints = Endpoints {
         listen: config.zenoh.listen.clone(),
         connect: config.zenoh.connect.clone(),
+        security,
     };
     let session = open_session_as(&endpoints, config.zenoh.mode).await?;
     if !config.zenoh.connect.is_empty()

@@ -11,6 +11,7 @@ use towernav_ground_station::net::{self, NetLink};
 use towernav_ground_station::recording::{self, ReplayPlayer};
 use towernav_landmark_db::{Author, LandmarkDb, import_csv};
 use towernav_protocol::NodeId;
+use towernav_protocol::security::Credentials;
 use towernav_protocol::session::Endpoints;
 
 #[derive(Parser)]
@@ -32,6 +33,14 @@ struct Cli {
     /// Zenoh endpoint to listen on, for edges that connect to the ground station.
     #[arg(long)]
     listen: Vec<String>,
+    /// This ground station's credentials folder (`towernav-fleet issue --role
+    /// ground-station`): links become mutual TLS (`tls/` endpoints) under the
+    /// fleet's access rules. Without it, plain TCP (loopback and tests only).
+    #[arg(long)]
+    credentials: Option<PathBuf>,
+    /// Its certificate name, when the roster has several ground stations.
+    #[arg(long, requires = "credentials")]
+    node: Option<String>,
     /// Name stamped on database changes and corrections made from this ground station.
     #[arg(long, env = "USER", default_value = "ground-station")]
     operator: String,
@@ -77,9 +86,26 @@ fn main() -> anyhow::Result<()> {
         Some((db, samples)) => (db, Some(samples)),
         None => (open_database(&cli)?, None),
     };
+    let security = match &cli.credentials {
+        Some(dir) => {
+            let credentials = Credentials::load_ground_station(dir, cli.node.as_deref())?;
+            tracing::info!(
+                node = credentials.name(),
+                "zenoh: mutual TLS, fleet access rules"
+            );
+            Some(credentials)
+        }
+        None => {
+            tracing::info!(
+                "zenoh: plain TCP, no credentials (loopback and tests only; see `towernav-fleet`)"
+            );
+            None
+        }
+    };
     let endpoints = Endpoints {
         listen: cli.listen.clone(),
         connect: cli.connect.clone(),
+        security,
     };
     let options = gs_options(&cli);
     let db_path = cli.db.clone();

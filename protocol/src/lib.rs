@@ -9,6 +9,8 @@ pub mod ids;
 pub mod keys;
 pub mod messages;
 #[cfg(feature = "zenoh")]
+pub mod security;
+#[cfg(feature = "zenoh")]
 pub mod session;
 pub mod tower_type;
 

@@ -2,6 +2,9 @@
 //!
 //! Zenoh's default peer multicasts its scouting and listens on every interface;
 //! towernav turns both off and talks only to the endpoints it is given.
+//! With [`Credentials`], links are mutual TLS and the fleet's access rules apply.
+
+use crate::security::Credentials;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SessionConfigError {
@@ -9,13 +12,19 @@ pub enum SessionConfigError {
     Endpoint { endpoint: String, reason: String },
     #[error("zenoh config key {key}: {reason}")]
     Key { key: &'static str, reason: String },
+    #[error(
+        "zenoh endpoint {endpoint:?}: with fleet credentials every link is tls/<host>:<port> (plain tcp would bypass them)"
+    )]
+    PlainWithCredentials { endpoint: String },
 }
 
-/// Where a node listens and what it connects to, e.g. `tcp/127.0.0.1:7447`.
+/// Where a node listens and what it connects to, e.g. `tcp/127.0.0.1:7447`,
+/// and, on a secured fleet, its credentials (then every endpoint is `tls/`).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Endpoints {
     pub listen: Vec<String>,
     pub connect: Vec<String>,
+    pub security: Option<Credentials>,
 }
 
 /// A peer-mode config with multicast scouting off and only the given endpoints.
@@ -45,10 +54,15 @@ fn config_for(mode: &str, endpoints: &Endpoints) -> Result<zenoh::Config, Sessio
                 endpoint: endpoint.clone(),
                 reason: e.to_string(),
             })?;
+        if endpoints.security.is_some() && !endpoint.starts_with("tls/") {
+            return Err(SessionConfigError::PlainWithCredentials {
+                endpoint: endpoint.clone(),
+            });
+        }
     }
     let mut config = zenoh::Config::default();
     let json = |v: &[String]| serde_json::to_string(v).unwrap_or_else(|_| "[]".into());
-    let settings: [(&'static str, String); 6] = [
+    let mut settings: Vec<(&'static str, String)> = vec![
         ("mode", format!("{mode:?}")),
         ("timestamping/enabled", "true".into()),
         ("scouting/multicast/enabled", "false".into()),
@@ -59,6 +73,9 @@ fn config_for(mode: &str, endpoints: &Endpoints) -> Result<zenoh::Config, Sessio
         ("listen/endpoints", json(&endpoints.listen)),
         ("connect/endpoints", json(&endpoints.connect)),
     ];
+    if let Some(credentials) = &endpoints.security {
+        settings.extend(credentials.settings());
+    }
     for (key, value) in settings {
         config
             .insert_json5(key, &value)
@@ -79,6 +96,7 @@ mod tests {
         let config = session_config(&Endpoints {
             listen: vec!["tcp/127.0.0.1:17447".into()],
             connect: vec![],
+            ..Default::default()
         })
         .expect("config");
         let text = format!("{config}");
@@ -103,6 +121,7 @@ mod tests {
         let err = session_config(&Endpoints {
             listen: vec![],
             connect: vec!["nonsense".into()],
+            ..Default::default()
         })
         .expect_err("must refuse");
         assert!(err.to_string().contains("nonsense"));

@@ -88,6 +88,7 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
     let router = zenoh::open(router_config(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
+        ..Default::default()
     })?)
     .await
     .map_err(err)?;

@@ -103,6 +103,7 @@ async fn a_subscriber_gets_every_topic_and_the_poses_match_the_truth() -> anyhow
     let listener = open_session(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
+        ..Default::default()
     })
     .await?;
     let keys = Keys::new(NodeId::new("itest")?);
@@ -202,6 +203,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
     let gs = open_session(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
+        ..Default::default()
     })
     .await?;
     let uav = NodeId::new("uav7")?;
@@ -335,6 +337,7 @@ async fn a_landmark_change_at_the_ground_station_reaches_the_running_edge() -> a
     let gs = open_session(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
+        ..Default::default()
     })
     .await?;
     let fleet = NodeId::new("lmtest")?;

@@ -122,6 +122,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
     let session = open_session(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
+        ..Default::default()
     })
     .await?;
     let dir = tempfile::tempdir()?;
@@ -130,6 +131,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         Endpoints {
             listen: vec![],
             connect: vec![endpoint],
+            ..Default::default()
         },
         fleet.clone(),
         None,

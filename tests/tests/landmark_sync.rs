@@ -50,12 +50,14 @@ async fn the_edge_replica_follows_the_ground_station() -> anyhow::Result<()> {
     let gs = open_session(&Endpoints {
         listen: vec![endpoint.clone()],
         connect: vec![],
+        ..Default::default()
     })
     .await?;
     let service = tokio::spawn(serve(gs.clone(), fleet.clone(), db_path.clone()));
     let edge = open_session(&Endpoints {
         listen: vec![],
         connect: vec![endpoint],
+        ..Default::default()
     })
     .await?;
     towernav_edge::node::wait_for_peer(&edge, Duration::from_secs(10)).await?;

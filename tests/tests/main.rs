@@ -4,6 +4,7 @@ mod autopilot_link;
 mod detector;
 mod edge_daemon;
 mod fleet;
+mod fleet_security;
 mod flight_logs;
 mod flight_replay;
 mod ground_station_net;

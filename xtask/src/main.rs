@@ -1,4 +1,4 @@
-//! `cargo xtask demo | gs | test | train | quantize | screenshot | bench-edge | setup-ort`: the project's two front doors, the ground station, and the detector's training.
+//! `cargo xtask demo | gs | test | train | quantize | screenshot | bench-edge | setup-ort | zenohd`: the project's two front doors, the ground station, and the detector's training.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -10,6 +10,7 @@ mod screenshot;
 mod system_packages;
 mod train;
 mod train_card;
+mod zenohd;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -97,6 +98,9 @@ enum Task {
     },
     /// Install ONNX Runtime's shared library into .ort/ (from the onnxruntime wheel on PyPI).
     SetupOrt,
+    /// Build the Zenoh router matching the project's Zenoh into .zenohd/
+    /// (`.zenohd/bin/zenohd -c router.json5`; see `towernav-fleet router-config`).
+    Zenohd,
 }
 
 #[derive(clap::Args)]
@@ -148,7 +152,9 @@ impl Task {
             Self::Screenshot { .. } => vec![Xvfb],
             // The model card scores the finished run with the edge's detector.
             Self::Train { card: true, .. } => vec![OnnxRuntime],
-            Self::Gs | Self::Train { .. } | Self::Quantize | Self::SetupOrt => vec![],
+            Self::Gs | Self::Train { .. } | Self::Quantize | Self::SetupOrt | Self::Zenohd => {
+                vec![]
+            }
         }
     }
 }
@@ -228,6 +234,7 @@ fn main() -> anyhow::Result<()> {
         Task::Screenshot { seconds } => screenshot::screenshot(&root, seconds),
         Task::Quantize => train::quantize(&root),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
+        Task::Zenohd => zenohd::ensure_zenohd(&root).map(|bin| println!("{}", bin.display())),
         Task::Train {
             foreground,
             ship,

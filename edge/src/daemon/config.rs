@@ -44,6 +44,12 @@ pub struct ZenohSection {
     /// `peer` (the default: edges and ground station find each other directly) or
     /// `client` (behind a router: everything goes through the `connect` router).
     pub mode: ZenohMode,
+    /// This node's credentials folder from `towernav-fleet issue` (its
+    /// certificate, the fleet CA and the roster): links become mutual TLS
+    /// (`tls/` endpoints) and the fleet's access rules apply. Without it the
+    /// link is plain TCP, for loopback and the bench only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub credentials: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
@@ -431,6 +437,7 @@ impl Default for ZenohSection {
             listen: vec!["tcp/127.0.0.1:7447".into()],
             connect: vec![],
             mode: ZenohMode::Peer,
+            credentials: None,
         }
     }
 }
@@ -561,11 +568,23 @@ impl EdgeConfig {
                 return invalid(field, e.to_string());
             }
         }
+        let scheme = if self.zenoh.credentials.is_some() {
+            "tls/"
+        } else {
+            "tcp/"
+        };
         for endpoint in self.zenoh.listen.iter().chain(&self.zenoh.connect) {
-            if !endpoint.starts_with("tcp/") {
+            if !endpoint.starts_with(scheme) {
                 return invalid(
                     "zenoh.listen/connect",
-                    format!("{endpoint:?}: towernav speaks tcp/<host>:<port> only"),
+                    format!(
+                        "{endpoint:?}: towernav speaks {scheme}<host>:<port> {}",
+                        if scheme == "tls/" {
+                            "when zenoh.credentials is set (plain tcp would go around them)"
+                        } else {
+                            "without zenoh.credentials (tls/ needs them)"
+                        }
+                    ),
                 );
             }
         }
