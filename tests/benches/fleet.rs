@@ -1,5 +1,6 @@
 //! Fleet scale: `cargo bench -p towernav-tests --bench fleet -- [--edges 20]
-//! [--seconds 10] [--speed 1] [--preview-hz 0] [--record fleet.mcap]`.
+//! [--seconds 10] [--speed 1] [--preview-hz 0] [--record fleet.mcap]
+//! [--zenohd .zenohd/bin/zenohd] [--secure]`.
 //!
 //! Runs that many simulated edges (oracle detector) through one router to one
 //! subscriber and reports poses lost and their latency (sender timestamp to
@@ -23,6 +24,13 @@ struct Args {
     preview_hz: f64,
     #[arg(long)]
     record: Option<std::path::PathBuf>,
+    /// Route through this zenohd (`cargo xtask zenohd` builds it) instead of
+    /// an in-process router; the subscriber is then its client.
+    #[arg(long)]
+    zenohd: Option<std::path::PathBuf>,
+    /// Mutual TLS with a fresh fleet CA's certificates, under its access rules.
+    #[arg(long)]
+    secure: bool,
     /// Passed by `cargo bench`; ignored.
     #[arg(long, hide = true)]
     bench: bool,
@@ -37,14 +45,30 @@ async fn main() -> anyhow::Result<()> {
         speed: args.speed,
         preview_hz: args.preview_hz,
         record: args.record,
+        zenohd: args.zenohd,
+        secure: args.secure,
     };
     let report = run_fleet(&options).await?;
     let published: u64 = report.published.values().sum();
     let received: u64 = report.received.values().sum();
     let (p50, p99, max) = report.latency();
     println!(
-        "fleet: {} edges x {} frames at speed {} in {:.1} s",
-        options.edges, options.frames, options.speed, report.wall_s
+        "fleet: {} edges x {} frames at speed {} in {:.1} s, through {}{}",
+        options.edges,
+        options.frames,
+        options.speed,
+        report.wall_s,
+        options
+            .zenohd
+            .as_ref()
+            .map_or("an in-process router".to_owned(), |p| p
+                .display()
+                .to_string()),
+        if options.secure {
+            ", mutual TLS and access rules"
+        } else {
+            ", plain TCP"
+        }
     );
     println!(
         "poses: {published} published, {received} received, {} UAVs short",

@@ -1,7 +1,10 @@
 //! A fleet through one router: `n` simulated edges (oracle detector) connect
-//! to a router-mode Zenoh session, a subscriber in the router itself counts
-//! every pose by UAV and sequence number and measures its age from the sender's
-//! timestamp. Shared by the fleet test and `cargo bench -p towernav-tests --bench fleet`.
+//! to a router, in-process (a router-mode Zenoh session, the subscriber in it)
+//! or a `zenohd` process (the subscriber a client of it, as a ground station
+//! is); the subscriber counts every pose by UAV and sequence number and
+//! measures its age from the sender's timestamp. With `secure`, the fleet's
+//! CA issues every node a certificate and all links are mutual TLS under the
+//! access rules. Shared by the fleet test and `cargo bench -p towernav-tests --bench fleet`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -11,8 +14,11 @@ use std::time::{Duration, SystemTime};
 
 use towernav_edge::daemon::config::{DetectorKind, EdgeConfig, ZenohMode};
 use towernav_edge::edge_cmd::run_edge;
+use towernav_edge::node::wait_for_peer;
+use towernav_fleet::{Authority, node, router};
 use towernav_ground_station::recording::Recorder;
-use towernav_protocol::session::{Endpoints, router_config};
+use towernav_protocol::security::{Credentials, Role};
+use towernav_protocol::session::{Endpoints, client_config, router_config};
 use towernav_protocol::{Keys, NodeId, PoseEstimate, Topic, decode};
 
 /// Pose sequence numbers per UAV, and pose ages in ms, as the subscriber saw them.
@@ -27,6 +33,10 @@ pub struct FleetOptions {
     pub preview_hz: f64,
     /// Record every topic the subscriber sees into this MCAP file.
     pub record: Option<PathBuf>,
+    /// Route through this `zenohd` (`cargo xtask zenohd`) instead of an in-process router.
+    pub zenohd: Option<PathBuf>,
+    /// Mutual TLS with certificates from a fresh fleet CA, and its access rules.
+    pub secure: bool,
 }
 
 #[derive(Debug, Default)]
@@ -64,12 +74,23 @@ impl FleetReport {
     }
 }
 
-fn edge_config(fleet: &str, uav: usize, router: &str, options: &FleetOptions) -> EdgeConfig {
+fn uav_id(i: usize) -> String {
+    format!("uav{i:02}")
+}
+
+fn edge_config(
+    fleet: &str,
+    uav: usize,
+    router: &str,
+    credentials: Option<PathBuf>,
+    options: &FleetOptions,
+) -> EdgeConfig {
     let mut c = EdgeConfig {
         fleet: fleet.into(),
-        uav: format!("uav{uav:02}"),
+        uav: uav_id(uav),
         ..EdgeConfig::default()
     };
+    c.zenoh.credentials = credentials;
     c.zenoh.listen = vec![];
     c.zenoh.connect = vec![router.into()];
     c.zenoh.mode = ZenohMode::Client;
@@ -81,19 +102,138 @@ fn edge_config(fleet: &str, uav: usize, router: &str, options: &FleetOptions) ->
     c
 }
 
+/// The fleet's certificates: a CA folder with a router, a ground station
+/// (the subscriber) and one edge per UAV.
+struct Certificates {
+    _dir: tempfile::TempDir,
+    ca: PathBuf,
+}
+
+impl Certificates {
+    fn issue(fleet: &str, edges: usize) -> anyhow::Result<Self> {
+        let dir = tempfile::tempdir()?;
+        let ca = dir.path().join("fleet");
+        let mut authority = Authority::init(&ca, fleet, 2)?;
+        let host = ["127.0.0.1".to_owned()];
+        authority.issue(node("router", Role::Router, None, &host)?, 1)?;
+        authority.issue(node("bench-gs", Role::GroundStation, None, &host)?, 1)?;
+        for i in 0..edges {
+            let uav = uav_id(i);
+            authority.issue(
+                node(&format!("edge-{uav}"), Role::Edge, Some(&uav), &host)?,
+                1,
+            )?;
+        }
+        Ok(Self { _dir: dir, ca })
+    }
+
+    fn node(&self, name: &str) -> PathBuf {
+        self.ca.join(towernav_fleet::NODES_DIR).join(name)
+    }
+
+    fn credentials(&self, name: &str) -> anyhow::Result<Credentials> {
+        Ok(Credentials::load(&self.node(name), name)?)
+    }
+}
+
+/// A `zenohd` child process, killed when dropped.
+struct Zenohd(std::process::Child);
+
+impl Drop for Zenohd {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts `zenohd` listening on `endpoint` and waits until its port accepts.
+fn start_zenohd(
+    bin: &std::path::Path,
+    endpoint: &str,
+    certificates: Option<&Certificates>,
+    dir: &std::path::Path,
+) -> anyhow::Result<Zenohd> {
+    let listen = [endpoint.to_owned()];
+    let config = match certificates {
+        Some(c) => router::router_config(&c.credentials("router")?, &listen),
+        None => serde_json::json!({
+            "mode": "router",
+            "listen": { "endpoints": listen },
+            "scouting": { "multicast": { "enabled": false } },
+            "timestamping": { "enabled": { "router": true, "peer": true, "client": true } },
+        }),
+    };
+    let path = dir.join("zenohd.json5");
+    std::fs::write(&path, serde_json::to_string_pretty(&config)?)?;
+    let child = std::process::Command::new(bin)
+        .arg("-c")
+        .arg(&path)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .map_err(|e| anyhow::anyhow!("starting {}: {e}", bin.display()))?;
+    let router = Zenohd(child);
+    let port = endpoint.rsplit(':').next().unwrap_or_default();
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while std::net::TcpStream::connect(format!("127.0.0.1:{port}")).is_err() {
+        anyhow::ensure!(
+            std::time::Instant::now() < deadline,
+            "{} did not listen on {endpoint} within 20 s",
+            bin.display()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Ok(router)
+}
+
 pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
-    let endpoint = crate::loopback_endpoint();
     let fleet = "fleet";
+    let port = crate::loopback_port();
+    let endpoint = if options.secure {
+        format!("tls/127.0.0.1:{port}")
+    } else {
+        format!("tcp/127.0.0.1:{port}")
+    };
     let err = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let router = zenoh::open(router_config(&Endpoints {
-        listen: vec![endpoint.clone()],
-        connect: vec![],
-        ..Default::default()
-    })?)
-    .await
-    .map_err(err)?;
-    // The subscriber lives in the router itself: it is in place the moment
-    // it is declared, before any edge connects, with nothing to wait for.
+    let certificates = match options.secure {
+        true => Some(Certificates::issue(fleet, options.edges)?),
+        false => None,
+    };
+    let scratch = tempfile::tempdir()?;
+    let (_zenohd, router) = match &options.zenohd {
+        Some(bin) => {
+            let process = start_zenohd(bin, &endpoint, certificates.as_ref(), scratch.path())?;
+            let security = match &certificates {
+                Some(c) => Some(c.credentials("bench-gs")?),
+                None => None,
+            };
+            let session = zenoh::open(client_config(&Endpoints {
+                listen: vec![],
+                connect: vec![endpoint.clone()],
+                security,
+            })?)
+            .await
+            .map_err(err)?;
+            wait_for_peer(&session, Duration::from_secs(10)).await?;
+            (Some(process), session)
+        }
+        None => {
+            let security = match &certificates {
+                Some(c) => Some(c.credentials("router")?),
+                None => None,
+            };
+            let session = zenoh::open(router_config(&Endpoints {
+                listen: vec![endpoint.clone()],
+                connect: vec![],
+                security,
+            })?)
+            .await
+            .map_err(err)?;
+            (None, session)
+        }
+    };
+    // The subscriber lives in the router itself, or is linked to it already:
+    // it is in place before any edge connects.
     let keys = Keys::new(NodeId::new(fleet)?);
     let all = router
         .declare_subscriber(keys.all_uavs_any_topic())
@@ -124,7 +264,10 @@ pub async fn run_fleet(options: &FleetOptions) -> anyhow::Result<FleetReport> {
     let start = std::time::Instant::now();
     let mut tasks = Vec::new();
     for i in 0..options.edges {
-        let config = edge_config(fleet, i, &endpoint, options);
+        let credentials = certificates
+            .as_ref()
+            .map(|c| c.node(&format!("edge-{}", uav_id(i))));
+        let config = edge_config(fleet, i, &endpoint, credentials, options);
         tasks.push(tokio::spawn(async move {
             let summary = run_edge(&config, None, Arc::new(AtomicBool::new(false))).await?;
             anyhow::Ok((config.uav, summary.record.poses_published))
