@@ -2,8 +2,11 @@
 
 use std::fmt;
 
+use nalgebra::{Matrix2, Vector2};
+
 use towernav_protocol::PoseEstimate;
 
+use crate::gnss_score::TWO_SIGMA_CHI2;
 use crate::sim_eval::{ErrorStats, error_stats};
 use crate::truth_scorer::TruthScorer;
 use towernav_core::flight_record::FlightRecord;
@@ -18,6 +21,9 @@ pub struct FlightReport {
     pub poses_received: usize,
     /// Horizontal error of the poses that arrived, against truth at their frame.
     pub horizontal: ErrorStats,
+    /// Share of the scored poses whose error lies inside their own reported
+    /// 2-sigma ellipse (95 % if the covariance is honest).
+    pub two_sigma_coverage: f64,
     /// Of track-frames bound to a tower, the share bound to the right one.
     pub binding_accuracy: f64,
     /// Of track-frames on a tower the tracker must cover, the share bound.
@@ -34,13 +40,20 @@ impl FlightReport {
         received: &[PoseEstimate],
         fps: f64,
     ) -> Self {
-        let errors: Vec<f64> = received
+        let scored: Vec<(f64, bool)> = received
             .iter()
             .filter_map(|p| {
                 let (e, n) = *scorer.truth_en.get(&p.seq)?;
-                Some(((p.east_m - e).powi(2) + (p.north_m - n).powi(2)).sqrt())
+                let d = Vector2::new(p.east_m - e, p.north_m - n);
+                let c = &p.covariance;
+                let inside = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1])
+                    .try_inverse()
+                    .is_some_and(|inv| (d.transpose() * inv * d)[(0, 0)] <= TWO_SIGMA_CHI2);
+                Some((d.norm(), inside))
             })
             .collect();
+        let errors: Vec<f64> = scored.iter().map(|(e, _)| *e).collect();
+        let inside = scored.iter().filter(|(_, inside)| *inside).count();
         let identity = scorer.identity.finish();
         let rate = |secs: f64| {
             if secs > 0.0 {
@@ -57,6 +70,11 @@ impl FlightReport {
             poses_published: record.poses_published,
             poses_received: received.len(),
             horizontal: error_stats(&errors),
+            two_sigma_coverage: if scored.is_empty() {
+                0.0
+            } else {
+                inside as f64 / scored.len() as f64
+            },
             binding_accuracy: identity.binding_accuracy,
             bound_share: identity.binding_coverage,
             detector: record.detector.clone().map(|name| {
@@ -102,8 +120,19 @@ impl fmt::Display for FlightReport {
         )?;
         writeln!(
             f,
-            "horizontal error   RMS {:.2} m, p95 {:.2} m, max {:.2} m (over {} received poses)",
-            h.rms, h.p95, h.max, h.count
+            "horizontal error   RMS {:.2} m, median {:.2} m, p95 {:.2} m, max {:.2} m, within 5 m {:.1} % (over {} received poses)",
+            h.rms,
+            h.median,
+            h.p95,
+            h.max,
+            100.0 * h.within_5m,
+            h.count
+        )?;
+        writeln!(
+            f,
+            "estimates          {:.1} % of frames; {:.1} % of errors inside the reported 2-sigma ellipse (honest: 95 %)",
+            100.0 * self.poses_received as f64 / self.frames.max(1) as f64,
+            100.0 * self.two_sigma_coverage
         )?;
         write!(
             f,
@@ -111,5 +140,63 @@ impl fmt::Display for FlightReport {
             100.0 * self.binding_accuracy,
             100.0 * self.bound_share
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+    use towernav_protocol::{NodeId, PoseMethod};
+    use towernav_sim::{Scenario, World};
+
+    fn pose(seq: u64, east_m: f64, variance: f64) -> PoseEstimate {
+        PoseEstimate {
+            uav: NodeId::new("uav1").expect("id"),
+            time_s: seq as f64,
+            seq,
+            east_m,
+            north_m: 0.0,
+            up_m: 30.0,
+            lat_deg: 0.0,
+            lon_deg: 0.0,
+            alt_m: 0.0,
+            yaw_rad: 0.0,
+            covariance: [
+                [variance, 0.0, 0.0, 0.0],
+                [0.0, variance, 0.0, 0.0],
+                [0.0, 0.0, 1.0, 0.0],
+                [0.0, 0.0, 0.0, 0.01],
+            ],
+            method: PoseMethod::PaperLbl,
+            towers_used: vec![],
+        }
+    }
+
+    #[test]
+    fn coverage_counts_errors_inside_their_own_two_sigma_ellipse() {
+        let scenario = Scenario::preset(World::paper_field(), "paper-path-1", 1).expect("preset");
+        let mut scorer = TruthScorer::new(Arc::new(scenario));
+        for seq in 0..4 {
+            scorer.truth_en.insert(seq, (0.0, 0.0));
+        }
+        let record = FlightRecord {
+            frames: 8,
+            ..FlightRecord::default()
+        };
+        // 1 m off with 1 m^2 (inside), 2 m off with 1 m^2 (chi2 4: inside),
+        // 3 m off with 1 m^2 (chi2 9: outside), 3 m off with 4 m^2 (inside).
+        let received = [
+            pose(0, 1.0, 1.0),
+            pose(1, 2.0, 1.0),
+            pose(2, 3.0, 1.0),
+            pose(3, 3.0, 4.0),
+        ];
+        let report = FlightReport::new(&record, &scorer, &received, 30.0);
+        assert!((report.two_sigma_coverage - 0.75).abs() < 1e-12);
+        assert!((report.horizontal.within_5m - 1.0).abs() < 1e-12);
+        let text = report.to_string();
+        assert!(text.contains("50.0 % of frames"), "{text}");
+        assert!(text.contains("75.0 % of errors inside"), "{text}");
     }
 }
