@@ -855,6 +855,34 @@ mod tests {
     }
 
     #[test]
+    fn the_shipped_fleet_config_is_secured_and_valid() {
+        let mut config =
+            EdgeConfig::parse(include_str!("../../../deploy/edge.toml")).expect("parses");
+        // The calibration file is the user's, read when validating.
+        assert!(config.camera.calibration.is_some());
+        config.camera.calibration = None;
+        config.validate().expect("valid");
+        assert!(config.zenoh.credentials.is_some());
+        assert!(
+            config
+                .zenoh
+                .listen
+                .iter()
+                .chain(&config.zenoh.connect)
+                .all(|e| e.starts_with("tls/"))
+        );
+        // Plain tcp beside the credentials is refused, naming the endpoint.
+        let mut plain = config.clone();
+        plain.zenoh.connect = vec!["tcp/10.0.0.1:7447".into()];
+        let err = plain.validate().expect_err("plain tcp refused").to_string();
+        assert!(err.contains("tcp/10.0.0.1:7447"), "{err}");
+        // And tls without credentials.
+        let mut bare = config;
+        bare.zenoh.credentials = None;
+        assert!(bare.validate().is_err());
+    }
+
+    #[test]
     fn a_partial_file_keeps_the_other_defaults() {
         let config = EdgeConfig::parse(
             "uav = \"scout7\"\n[source]\nkind = \"images\"\npath = \"/data/frames\"\n[attitude]\nkind = \"csv\"\npath = \"att.csv\"\n[pipeline]\ntakeoff = [30.5, 114.3, 20.0]\n",
