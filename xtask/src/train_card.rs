@@ -35,6 +35,11 @@ pub fn write(root: &Path, work: &Path, ort: &Path) -> anyhow::Result<()> {
     let bin = build_release(root, &["towernav-edge"])?;
     let edge = bin.join("towernav-edge");
     let shipped = root.join("models").join("towers-int8.onnx");
+    let classifier = classifier_classes(root);
+    // The shipped type classifier reads each box's crop better than a small
+    // detector types it: keep it whenever it knows the model's classes.
+    let keeps_classifier =
+        !classifier.is_empty() && names.split(',').eq(classifier.iter().map(String::as_str));
 
     let mut card = String::new();
     writeln!(card, "# Model card: {}\n", model.display())?;
@@ -58,8 +63,13 @@ pub fn write(root: &Path, work: &Path, ort: &Path) -> anyhow::Result<()> {
     }
     for folder in &heldout {
         writeln!(card, "## Held out: {folder}\n")?;
+        let own = if keeps_classifier {
+            "this model, with the shipped type classifier"
+        } else {
+            "this model, its own classes"
+        };
         for (what, onnx, own_types) in [
-            ("this model, its own classes", model.as_path(), false),
+            (own, model.as_path(), keeps_classifier),
             ("the shipped model", shipped.as_path(), true),
         ] {
             let score = Command::new(&edge)
@@ -87,19 +97,71 @@ pub fn write(root: &Path, work: &Path, ort: &Path) -> anyhow::Result<()> {
             )?;
         }
     }
+    let flag = if keeps_classifier {
+        ""
+    } else {
+        " --no-type-model"
+    };
     writeln!(
         card,
-        "## Flying it\n\n    towernav-edge run --model {} --no-type-model ...\n\n\
+        "## Flying it\n\n    towernav-edge run --model {}{flag} ...\n\n\
          Every tower type in the landmark database must be one of `{names}` \
-         (a one-class `tower` model takes any).",
-        model.display()
+         (a one-class `tower` model takes any).{}",
+        model.display(),
+        if keeps_classifier {
+            " Its classes are the shipped type classifier's, which stays on: \
+             without it the boxes' types are the detector's own, and wrong types \
+             bind towers wrongly."
+        } else {
+            " The shipped type classifier does not know these classes: it is off."
+        }
     )?;
     let path = run_dir.join("MODEL_CARD.md");
     std::fs::write(&path, card).with_context(|| format!("writing {}", path.display()))?;
     eprintln!(
-        "xtask: wrote {}; fly the model with `--model {} --no-type-model`",
+        "xtask: wrote {}; fly the model with `--model {}{flag}`",
         path.display(),
         model.display()
     );
     Ok(())
+}
+
+/// The shipped type classifier's classes, by id (empty when unreadable).
+fn classifier_classes(root: &Path) -> Vec<String> {
+    let path = root.join("models").join("tower-types.training.json");
+    let Some(classes) = std::fs::read_to_string(path)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v.get("classes").and_then(|c| c.as_object().cloned()))
+    else {
+        return Vec::new();
+    };
+    let mut by_id: Vec<(usize, String)> = classes
+        .iter()
+        .filter_map(|(id, name)| Some((id.parse().ok()?, name.as_str()?.to_owned())))
+        .collect();
+    by_id.sort();
+    by_id.into_iter().map(|(_, name)| name).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_classifier_lists_its_classes_in_id_order() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .expect("the workspace");
+        let classes = classifier_classes(root);
+        assert!(
+            !classes.is_empty(),
+            "models/tower-types.training.json unread"
+        );
+        let mut sorted = classes.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(sorted.len(), classes.len(), "{classes:?}");
+        assert!(classifier_classes(Path::new("/nonexistent")).is_empty());
+    }
 }
