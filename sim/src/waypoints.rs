@@ -166,6 +166,103 @@ pub fn random_crossing(
     }
 }
 
+/// A turning flight for localization benchmarks: 30 m beside a random line
+/// for up to 350 m, a turn across to another line (or round to the same
+/// line's other side), and up to 300 m beside that one the other way, at one
+/// height of 25 to 40 m (raised 12 m over any tower the crossing passes
+/// within 25 m of) and 6 to 12 m/s. `None` for a world without a line of two
+/// towers.
+pub fn random_turning(world: &crate::World, rng: &mut impl rand::Rng) -> Option<FlightPlan> {
+    let lines: Vec<&Vec<usize>> = world.lines.iter().filter(|l| l.len() >= 2).collect();
+    if lines.is_empty() {
+        return None;
+    }
+    let foot = |i: usize| {
+        let p = world.towers[i].foot_in_world;
+        (p.x, p.y)
+    };
+    let unit = |a: (f64, f64), b: (f64, f64)| {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let n = dx.hypot(dy).max(1e-9);
+        (dx / n, dy / n)
+    };
+    // A stretch beside `line` (from its first tower, or its last when
+    // `backwards`; or from abreast of `from`), `side` metres to the right of
+    // travel, at most `length` metres long.
+    let beside =
+        |line: &[usize], backwards: bool, side: f64, length: f64, from: Option<(f64, f64)>| {
+            let mut feet: Vec<(f64, f64)> = line.iter().map(|&i| foot(i)).collect();
+            if backwards {
+                feet.reverse();
+            }
+            let (a, b) = (feet[0], feet[feet.len() - 1]);
+            let d = unit(a, b);
+            let right = (d.1, -d.0);
+            let span = (b.0 - a.0).hypot(b.1 - a.1);
+            let along = from.map_or(-60.0, |p| {
+                ((p.0 - a.0) * d.0 + (p.1 - a.1) * d.1).clamp(-60.0, span)
+            });
+            let start = (a.0 + along * d.0, a.1 + along * d.1);
+            let run = length.min(span + 60.0 - along).max(80.0);
+            let end = (start.0 + run * d.0, start.1 + run * d.1);
+            (
+                [start, end].map(|p| (p.0 + side * right.0, p.1 + side * right.1)),
+                d,
+            )
+        };
+    let first = lines[rng.random_range(0..lines.len())];
+    let (leg1, d1) = beside(
+        first,
+        rng.random_bool(0.5),
+        30.0,
+        rng.random_range(250.0..350.0),
+        None,
+    );
+    let (second, side) = if lines.len() > 1 && rng.random_bool(0.7) {
+        let others: Vec<&&Vec<usize>> = lines.iter().filter(|l| ***l != *first).collect();
+        (*others[rng.random_range(0..others.len())], 30.0)
+    } else {
+        (first, -30.0)
+    };
+    // The second stretch heads back against the first, from abreast of the turn.
+    let (a, b) = (foot(second[0]), foot(second[second.len() - 1]));
+    let forward = unit(a, b);
+    let backwards = forward.0 * d1.0 + forward.1 * d1.1 > 0.0;
+    let (leg2, _) = beside(
+        second,
+        backwards,
+        side,
+        rng.random_range(200.0..300.0),
+        Some(leg1[1]),
+    );
+    let mut height_m: f64 = rng.random_range(25.0..40.0);
+    let speed_mps = rng.random_range(6.0..12.0);
+    let tallest_near_crossing = world
+        .towers
+        .iter()
+        .filter(|t| {
+            segment_distance((t.foot_in_world.x, t.foot_in_world.y), leg1[1], leg2[0]) < 25.0
+        })
+        .map(|t| t.height_m)
+        .fold(0.0, f64::max);
+    if tallest_near_crossing > 0.0 {
+        height_m = height_m.max(tallest_near_crossing + 12.0);
+    }
+    let waypoints = [leg1[0], leg1[1], leg2[0], leg2[1]]
+        .map(|(east_m, north_m)| Waypoint {
+            east_m,
+            north_m,
+            height_m,
+            speed_mps,
+        })
+        .to_vec();
+    Some(FlightPlan {
+        name: "random-turning".into(),
+        description: "beside a line, a turn, beside a line the other way".into(),
+        waypoints,
+    })
+}
+
 /// Where a flight plan comes from: a preset's name or a waypoint file.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum PlanSource {
@@ -255,6 +352,30 @@ fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_turning_plan_turns_and_stays_low_beside_its_lines() {
+        use rand::SeedableRng;
+        for seed in 0..20 {
+            let world = crate::World::random(seed, &crate::world::WorldParams::default());
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let plan = random_turning(&world, &mut rng).expect("a plan");
+            assert_eq!(plan.waypoints.len(), 4);
+            let w = &plan.waypoints;
+            let heading =
+                |a: &Waypoint, b: &Waypoint| (b.north_m - a.north_m).atan2(b.east_m - a.east_m);
+            let turn = heading(&w[2], &w[3]) - heading(&w[0], &w[1]);
+            assert!(turn.cos() < 0.9, "seed {seed}: no turn: {w:?}");
+            let tallest = world.towers.iter().map(|t| t.height_m).fold(0.0, f64::max);
+            for p in w {
+                assert!(
+                    (25.0..=tallest.max(40.0) + 12.0).contains(&p.height_m),
+                    "{p:?}"
+                );
+                assert!((6.0..12.0).contains(&p.speed_mps));
+            }
+        }
+    }
 
     #[test]
     fn every_preset_parses() {

@@ -66,6 +66,27 @@ pub enum EvalCommand {
         #[arg(long, default_value = "target/detector-eval")]
         out: PathBuf,
     },
+    /// Localization over random worlds and turning flights beside their
+    /// lines, with random weather: the oracle and the YOLO detector on the
+    /// rendered frames, every frame through the pipeline, scored against
+    /// truth (RMS, median, p95, within 5 m, estimates, 2-sigma coverage,
+    /// identity).
+    #[command(name = "bench-localization")]
+    LocBench {
+        #[command(flatten)]
+        detector: DetectorArgs,
+        #[arg(long, default_value_t = 5)]
+        worlds: u64,
+        /// World i is drawn from seed + i (no test or dataset uses 1000 on).
+        #[arg(long, default_value_t = 1000)]
+        seed: u64,
+        /// The oracle only: no model, no rendering.
+        #[arg(long)]
+        oracle_only: bool,
+        /// Folder for loc-bench.json.
+        #[arg(long, default_value = "target/loc-bench")]
+        out: PathBuf,
+    },
     /// Reproduce the paper's localization analysis (seed vs ours, tables and PNG plots).
     #[command(name = "eval-localization")]
     Localization {
@@ -81,6 +102,28 @@ impl EvalCommand {
     pub fn run(&self) -> anyhow::Result<()> {
         match self {
             Self::Localization { out, seed } => towernav_eval::cmd::loc_eval::write_all(out, *seed),
+            Self::LocBench {
+                detector,
+                worlds,
+                seed,
+                oracle_only,
+                out,
+            } => {
+                let section = detector.section();
+                let model = (!oracle_only).then(|| {
+                    (
+                        section.model.clone(),
+                        section.type_model().map(PathBuf::from),
+                        detector.options(),
+                    )
+                });
+                let options = towernav_eval::cmd::loc_bench::LocBenchOptions {
+                    worlds: *worlds,
+                    seed: *seed,
+                    model,
+                };
+                towernav_eval::cmd::loc_bench::write_all(&options, out)
+            }
             Self::Tracking { out, seed, reid } => {
                 towernav_eval::cmd::tracking_eval::write_all(out, *seed, reid.as_deref())
             }

@@ -4,6 +4,7 @@
 
 pub mod demo_plots;
 pub mod detector_eval;
+pub mod loc_bench;
 pub mod loc_eval;
 pub mod loc_plots;
 pub mod real_eval;

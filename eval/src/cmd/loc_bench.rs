@@ -1,0 +1,268 @@
+//! `towernav-edge bench-localization`: localization over random worlds and
+//! turning flights, with random weather, the oracle and a YOLO detector on
+//! the rendered frames, every frame through the pipeline (tracker, identity,
+//! localizer, filter) as the daemon runs it, scored against truth.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use comfy_table::Table;
+use nalgebra::Vector2;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use towernav_core::landmarks::LandmarkMap;
+use towernav_core::pipeline::{Pipeline, PipelineConfig};
+use towernav_onnx::{DetectorOptions, YoloDetector};
+use towernav_sim::world::WorldParams;
+use towernav_sim::{Conditions, Scenario, World};
+
+use crate::gnss_score::TWO_SIGMA_CHI2;
+use crate::mot_metrics::MotAccumulator;
+use crate::progress::bar;
+use crate::sim_eval::error_stats;
+use crate::tracking_eval::{add_frame, pipeline_hypotheses};
+
+pub struct LocBenchOptions {
+    pub worlds: u64,
+    /// World `i` is drawn from `seed + i` (tests and datasets use others).
+    pub seed: u64,
+    /// YOLO model and type classifier; `None`: the oracle only.
+    pub model: Option<(PathBuf, Option<PathBuf>, DetectorOptions)>,
+}
+
+/// One flight with one detector.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchRow {
+    pub world_seed: u64,
+    pub detector: String,
+    pub frames: usize,
+    pub flight_s: f64,
+    pub rms_m: f64,
+    pub median_m: f64,
+    pub p95_m: f64,
+    pub max_m: f64,
+    pub within_5m: f64,
+    /// Share of frames with an estimate.
+    pub estimate_share: f64,
+    /// Share of errors inside the reported 2-sigma ellipse (95 % if honest).
+    pub two_sigma_coverage: f64,
+    /// Of bound track-frames, the share on their true tower.
+    pub identity: f64,
+}
+
+/// World `seed`'s flight: a random world, a turning plan beside its lines
+/// and random weather, all drawn from the seed.
+pub fn scenario(seed: u64) -> anyhow::Result<(Scenario, Conditions)> {
+    let world = World::random(seed, &WorldParams::default());
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7u64.rotate_left(40));
+    let plan = towernav_sim::waypoints::random_turning(&world, &mut rng)
+        .with_context(|| format!("world {seed} has no line to fly beside"))?;
+    let conditions = Conditions::random(&mut rng);
+    Ok((Scenario::flying(world, &plan, seed), conditions))
+}
+
+/// Flies `scenario` through the pipeline; with `detector`, on its boxes in
+/// the frames rendered under `conditions`, else on the oracle's.
+pub fn fly(
+    scenario: &Scenario,
+    conditions: &Conditions,
+    mut detector: Option<&mut YoloDetector>,
+    name: &str,
+    tick: &dyn Fn(),
+) -> anyhow::Result<BenchRow> {
+    let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
+    let mut pipeline = Pipeline::new(
+        PipelineConfig::new(scenario.camera, scenario.start_in_world()),
+        map.clone(),
+    );
+    let renderer = detector.as_ref().map(|_| scenario.renderer());
+    let mut buffers = renderer.as_ref().map(|r| r.buffers());
+    let mut identity = MotAccumulator::default();
+    let (mut errors, mut inside, mut frames) = (Vec::new(), 0usize, 0usize);
+    for (truth, mut frame) in scenario.frames() {
+        if let (Some(d), Some(r), Some(b)) = (detector.as_deref_mut(), &renderer, &mut buffers) {
+            scenario.render_into(r, b, &truth, conditions);
+            frame.detections = d
+                .detect(&b.image, frame.seq)
+                .with_context(|| format!("world {}, frame {}", scenario.seed, frame.seq))?;
+        }
+        let out = pipeline.process(&frame);
+        add_frame(
+            &mut identity,
+            scenario,
+            &truth,
+            &pipeline_hypotheses(&out, &map),
+        );
+        frames += 1;
+        if let Some(e) = &out.estimate {
+            let p = truth.pose.position_in_world;
+            let d = Vector2::new(e.position_in_world.x - p.x, e.position_in_world.y - p.y);
+            let c = e.covariance.fixed_view::<2, 2>(0, 0).into_owned();
+            if c.try_inverse()
+                .is_some_and(|ci| (d.transpose() * ci * d)[(0, 0)] <= TWO_SIGMA_CHI2)
+            {
+                inside += 1;
+            }
+            errors.push(d.norm());
+        }
+        tick();
+    }
+    let stats = error_stats(&errors);
+    Ok(BenchRow {
+        world_seed: scenario.seed,
+        detector: name.to_owned(),
+        frames,
+        flight_s: frames as f64 / scenario.fps,
+        rms_m: stats.rms,
+        median_m: stats.median,
+        p95_m: stats.p95,
+        max_m: stats.max,
+        within_5m: stats.within_5m,
+        estimate_share: errors.len() as f64 / frames.max(1) as f64,
+        two_sigma_coverage: inside as f64 / errors.len().max(1) as f64,
+        identity: identity.finish().binding_accuracy,
+    })
+}
+
+/// Every world with the oracle and, when given, the YOLO detector.
+pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
+    let mut detector = match &options.model {
+        Some((model, types, detector_options)) => Some(YoloDetector::load_with_types(
+            model,
+            types.as_deref(),
+            detector_options,
+        )?),
+        None => None,
+    };
+    let flights: Vec<(Scenario, Conditions)> = (0..options.worlds)
+        .map(|i| scenario(options.seed + i))
+        .collect::<anyhow::Result<_>>()?;
+    let passes = if detector.is_some() { 2 } else { 1 };
+    let total: usize = flights.iter().map(|(s, _)| s.frame_count() as usize).sum();
+    let progress = bar((total * passes) as u64, "bench-localization");
+    let tick = || progress.inc(1);
+    let mut rows = Vec::new();
+    for (scenario, conditions) in &flights {
+        rows.push(fly(scenario, conditions, None, "oracle", &tick)?);
+        if let Some(d) = detector.as_mut() {
+            let name = d
+                .info()
+                .path
+                .file_name()
+                .map_or_else(|| "yolo".to_owned(), |n| n.to_string_lossy().into_owned());
+            rows.push(fly(scenario, conditions, Some(d), &name, &tick)?);
+        }
+    }
+    progress.finish_and_clear();
+    Ok(rows)
+}
+
+/// The rows, and for each detector all frames pooled (RMS over every frame).
+pub fn table(rows: &[BenchRow]) -> Table {
+    let mut table = Table::new();
+    table.set_header([
+        "world",
+        "detector",
+        "flight",
+        "RMS",
+        "median",
+        "p95",
+        "max",
+        "within 5 m",
+        "estimates",
+        "2-sigma coverage",
+        "identity",
+    ]);
+    let mut push = |world: String, r: &BenchRow| {
+        table.add_row([
+            world,
+            r.detector.clone(),
+            format!("{:.0} s", r.flight_s),
+            format!("{:.2} m", r.rms_m),
+            format!("{:.2} m", r.median_m),
+            format!("{:.2} m", r.p95_m),
+            format!("{:.1} m", r.max_m),
+            format!("{:.1} %", 100.0 * r.within_5m),
+            format!("{:.1} %", 100.0 * r.estimate_share),
+            format!("{:.1} %", 100.0 * r.two_sigma_coverage),
+            format!("{:.2} %", 100.0 * r.identity),
+        ]);
+    };
+    for r in rows {
+        push(r.world_seed.to_string(), r);
+    }
+    let mut detectors: Vec<&str> = rows.iter().map(|r| r.detector.as_str()).collect();
+    detectors.dedup();
+    detectors.sort();
+    detectors.dedup();
+    for name in detectors {
+        push(
+            "all".into(),
+            &pooled(rows.iter().filter(|r| r.detector == name)),
+        );
+    }
+    table
+}
+
+/// Rows of one detector pooled, each weighted by its estimates (or frames).
+fn pooled<'a>(rows: impl Iterator<Item = &'a BenchRow>) -> BenchRow {
+    let rows: Vec<&BenchRow> = rows.collect();
+    let estimates = |r: &BenchRow| r.estimate_share * r.frames as f64;
+    let n: f64 = rows.iter().map(|r| estimates(r)).sum::<f64>().max(1.0);
+    let frames: usize = rows.iter().map(|r| r.frames).sum();
+    let mean =
+        |f: &dyn Fn(&BenchRow) -> f64| rows.iter().map(|r| f(r) * estimates(r)).sum::<f64>() / n;
+    BenchRow {
+        world_seed: 0,
+        detector: rows
+            .first()
+            .map_or_else(String::new, |r| r.detector.clone()),
+        frames,
+        flight_s: rows.iter().map(|r| r.flight_s).sum(),
+        rms_m: mean(&|r| r.rms_m.powi(2)).sqrt(),
+        // Medians and p95s do not pool: their estimate-weighted means.
+        median_m: mean(&|r| r.median_m),
+        p95_m: mean(&|r| r.p95_m),
+        max_m: rows.iter().map(|r| r.max_m).fold(0.0, f64::max),
+        within_5m: mean(&|r| r.within_5m),
+        estimate_share: n / frames.max(1) as f64,
+        two_sigma_coverage: mean(&|r| r.two_sigma_coverage),
+        identity: rows.iter().map(|r| r.identity).sum::<f64>() / rows.len().max(1) as f64,
+    }
+}
+
+pub fn write_all(options: &LocBenchOptions, out: &Path) -> anyhow::Result<()> {
+    let rows = bench(options)?;
+    println!(
+        "Localization over {} random worlds (seeds {}..{}), turning flights beside their lines, random weather; every frame through the pipeline, against truth:\n{}",
+        options.worlds,
+        options.seed,
+        options.seed + options.worlds,
+        table(&rows)
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let path = out.join("loc-bench.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_oracle_localizes_a_turning_flight_and_the_row_adds_up() {
+        let (scenario, conditions) = scenario(1000).expect("a flight");
+        let row = fly(&scenario, &conditions, None, "oracle", &|| {}).expect("flown");
+        assert_eq!(row.frames, scenario.frame_count() as usize);
+        assert!(row.estimate_share > 0.5, "{row:?}");
+        assert!(row.rms_m < 10.0, "{row:?}");
+        assert!((0.0..=1.0).contains(&row.two_sigma_coverage));
+        let all = pooled([&row, &row].into_iter());
+        assert!((all.rms_m - row.rms_m).abs() < 1e-9);
+        assert_eq!(all.frames, 2 * row.frames);
+    }
+}
