@@ -184,6 +184,10 @@ pub(crate) fn pipeline_for(
         .with_context(|| format!("pipeline.method = {:?}", config.pipeline.method))?;
     let mut pipeline_config = PipelineConfig::new(camera, takeoff_in_world);
     pipeline_config.method = method;
+    // A model's boxes stray further than the oracle's (the pipeline's default).
+    if config.detector.kind == DetectorKind::Yolo {
+        pipeline_config.localizer.edge_sigma_px = config.detector.edge_sigma_px;
+    }
     if !config.pipeline.filter {
         pipeline_config.filter = None;
     }

@@ -83,6 +83,10 @@ pub enum EvalCommand {
         /// The oracle only: no model, no rendering.
         #[arg(long)]
         oracle_only: bool,
+        /// The localizer's box-edge spread for the YOLO runs, pixels
+        /// (default: the daemon's, `detector.edge_sigma_px`).
+        #[arg(long)]
+        edge_sigma_px: Option<f64>,
         /// Folder for loc-bench.json.
         #[arg(long, default_value = "target/loc-bench")]
         out: PathBuf,
@@ -107,6 +111,7 @@ impl EvalCommand {
                 worlds,
                 seed,
                 oracle_only,
+                edge_sigma_px,
                 out,
             } => {
                 let section = detector.section();
@@ -121,6 +126,7 @@ impl EvalCommand {
                     worlds: *worlds,
                     seed: *seed,
                     model,
+                    edge_sigma_px: Some(edge_sigma_px.unwrap_or(section.edge_sigma_px)),
                 };
                 towernav_eval::cmd::loc_bench::write_all(&options, out)
             }

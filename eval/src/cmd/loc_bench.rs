@@ -29,6 +29,9 @@ pub struct LocBenchOptions {
     pub seed: u64,
     /// YOLO model and type classifier; `None`: the oracle only.
     pub model: Option<(PathBuf, Option<PathBuf>, DetectorOptions)>,
+    /// The localizer's box-edge spread for the YOLO runs, pixels (`None`:
+    /// the pipeline's default).
+    pub edge_sigma_px: Option<f64>,
 }
 
 /// One flight with one detector.
@@ -49,6 +52,22 @@ pub struct BenchRow {
     pub two_sigma_coverage: f64,
     /// Of bound track-frames, the share on their true tower.
     pub identity: f64,
+    /// Robust spread (1.4826 MAD) of the top and bottom edges of the
+    /// detector's boxes against truth, for whole towers over 40 px matched
+    /// at IoU 0.5, pixels.
+    pub edge_error_px: Option<(f64, f64)>,
+}
+
+/// 1.4826 times the median absolute deviation: a sigma that outliers do not inflate.
+fn robust_sigma(values: &mut [f64]) -> Option<f64> {
+    if values.len() < 10 {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    let median = values[values.len() / 2];
+    let mut dev: Vec<f64> = values.iter().map(|v| (v - median).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    Some(1.4826 * dev[dev.len() / 2])
 }
 
 /// World `seed`'s flight: a random world, a turning plan beside its lines
@@ -68,14 +87,17 @@ pub fn fly(
     scenario: &Scenario,
     conditions: &Conditions,
     mut detector: Option<&mut YoloDetector>,
+    edge_sigma_px: Option<f64>,
     name: &str,
     tick: &dyn Fn(),
 ) -> anyhow::Result<BenchRow> {
     let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
-    let mut pipeline = Pipeline::new(
-        PipelineConfig::new(scenario.camera, scenario.start_in_world()),
-        map.clone(),
-    );
+    let mut config = PipelineConfig::new(scenario.camera, scenario.start_in_world());
+    if let Some(sigma) = edge_sigma_px {
+        config.localizer.edge_sigma_px = sigma;
+    }
+    let mut pipeline = Pipeline::new(config, map.clone());
+    let (mut tops, mut bottoms) = (Vec::new(), Vec::new());
     let renderer = detector.as_ref().map(|_| scenario.renderer());
     let mut buffers = renderer.as_ref().map(|r| r.buffers());
     let mut identity = MotAccumulator::default();
@@ -86,6 +108,16 @@ pub fn fly(
             frame.detections = d
                 .detect(&b.image, frame.seq)
                 .with_context(|| format!("world {}, frame {}", scenario.seed, frame.seq))?;
+            for t in truth
+                .boxes
+                .iter()
+                .filter(|t| !t.truncated && t.bbox.height() > 40.0)
+            {
+                if let Some(d) = frame.detections.iter().find(|d| d.bbox.iou(&t.bbox) >= 0.5) {
+                    tops.push(d.bbox.top - t.bbox.top);
+                    bottoms.push(d.bbox.bottom - t.bbox.bottom);
+                }
+            }
         }
         let out = pipeline.process(&frame);
         add_frame(
@@ -122,6 +154,7 @@ pub fn fly(
         estimate_share: errors.len() as f64 / frames.max(1) as f64,
         two_sigma_coverage: inside as f64 / errors.len().max(1) as f64,
         identity: identity.finish().binding_accuracy,
+        edge_error_px: robust_sigma(&mut tops).zip(robust_sigma(&mut bottoms)),
     })
 }
 
@@ -144,14 +177,21 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
     let tick = || progress.inc(1);
     let mut rows = Vec::new();
     for (scenario, conditions) in &flights {
-        rows.push(fly(scenario, conditions, None, "oracle", &tick)?);
+        rows.push(fly(scenario, conditions, None, None, "oracle", &tick)?);
         if let Some(d) = detector.as_mut() {
             let name = d
                 .info()
                 .path
                 .file_name()
                 .map_or_else(|| "yolo".to_owned(), |n| n.to_string_lossy().into_owned());
-            rows.push(fly(scenario, conditions, Some(d), &name, &tick)?);
+            rows.push(fly(
+                scenario,
+                conditions,
+                Some(d),
+                options.edge_sigma_px,
+                &name,
+                &tick,
+            )?);
         }
     }
     progress.finish_and_clear();
@@ -229,6 +269,7 @@ fn pooled<'a>(rows: impl Iterator<Item = &'a BenchRow>) -> BenchRow {
         estimate_share: n / frames.max(1) as f64,
         two_sigma_coverage: mean(&|r| r.two_sigma_coverage),
         identity: rows.iter().map(|r| r.identity).sum::<f64>() / rows.len().max(1) as f64,
+        edge_error_px: None,
     }
 }
 
@@ -241,6 +282,14 @@ pub fn write_all(options: &LocBenchOptions, out: &Path) -> anyhow::Result<()> {
         options.seed + options.worlds,
         table(&rows)
     );
+    for r in &rows {
+        if let Some((top, bottom)) = r.edge_error_px {
+            println!(
+                "world {} {}: box edges against truth (whole towers over 40 px), robust sigma top {top:.2} px, bottom {bottom:.2} px",
+                r.world_seed, r.detector
+            );
+        }
+    }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("loc-bench.json");
     std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
@@ -256,7 +305,7 @@ mod tests {
     #[test]
     fn the_oracle_localizes_a_turning_flight_and_the_row_adds_up() {
         let (scenario, conditions) = scenario(1000).expect("a flight");
-        let row = fly(&scenario, &conditions, None, "oracle", &|| {}).expect("flown");
+        let row = fly(&scenario, &conditions, None, None, "oracle", &|| {}).expect("flown");
         assert_eq!(row.frames, scenario.frame_count() as usize);
         assert!(row.estimate_share > 0.5, "{row:?}");
         assert!(row.rms_m < 10.0, "{row:?}");
