@@ -261,3 +261,83 @@ async fn an_edges_certificate_cannot_correct_move_towers_or_speak_for_another_ua
     assert_eq!(tokens, vec![keys.alive(&uav)], "{tokens:?}");
     Ok(())
 }
+
+/// An independent client, eclipse-zenoh for Python configured as
+/// protocol/README.md shows, through a secured router: with an edge's
+/// certificate its pose gets through and its correction does not; with a
+/// ground station's the correction gets through; without a certificate it
+/// gets no link.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_eclipse_zenoh_client_gets_what_its_certificate_allows() -> anyhow::Result<()> {
+    let Some(pythonpath) = towernav_tests::python_module("zenoh") else {
+        eprintln!("skipped: no eclipse-zenoh (cargo xtask test installs it)");
+        return Ok(());
+    };
+    let dir = tempfile::tempdir()?;
+    let ca_dir = dir.path().join("fleet");
+    let mut ca = Authority::init(&ca_dir, FLEET, 30)?;
+    let host = ["127.0.0.1".to_owned()];
+    let router_dir = ca.issue(node("router-1", Role::Router, None, &host)?, 5)?;
+    let gs = ca.issue(node("gs-1", Role::GroundStation, None, &[])?, 5)?;
+    let edge = ca.issue(node("edge-7", Role::Edge, Some("uav-7"), &[])?, 5)?;
+    let endpoint = tls();
+    let router = zenoh::open(towernav_protocol::session::router_config(&Endpoints {
+        listen: vec![endpoint.clone()],
+        connect: vec![],
+        security: Some(Credentials::load(&router_dir, "router-1")?),
+    })?)
+    .await
+    .map_err(anyhow_z)?;
+    let keys = Keys::new(NodeId::new(FLEET)?);
+    let heard = router
+        .declare_subscriber(keys.all_uavs_any_topic())
+        .await
+        .map_err(anyhow_z)?;
+    let uav = NodeId::new("uav-7")?;
+    let (pose, correction) = (
+        keys.uav(&uav, Topic::Pose),
+        keys.uav(&uav, Topic::Correction),
+    );
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/zenoh_put.py");
+    let python = move |credentials: Option<&Path>, puts: Vec<String>| {
+        let mut command = std::process::Command::new("python3");
+        command
+            .arg(&script)
+            .arg(&endpoint)
+            .env("PYTHONPATH", &pythonpath);
+        if let Some(dir) = credentials {
+            command.arg("--credentials").arg(dir);
+        }
+        let out = command.args(puts).output().expect("python3 runs");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let said = tokio::task::spawn_blocking(move || {
+        [
+            python(
+                Some(&edge),
+                vec![
+                    format!("{pose}=edge pose"),
+                    format!("{correction}=edge correction"),
+                ],
+            ),
+            python(Some(&gs), vec![format!("{correction}=operator correction")]),
+            python(None, vec![format!("{pose}=stranger pose")]),
+        ]
+    })
+    .await?;
+    assert!(said[0].starts_with("linked"), "{}", said[0]);
+    assert!(said[1].starts_with("linked"), "{}", said[1]);
+    assert!(said[2].starts_with("no link"), "{}", said[2]);
+    let mut got = Vec::new();
+    while let Ok(Ok(sample)) = tokio::time::timeout(QUIET, heard.recv_async()).await {
+        got.push(String::from_utf8_lossy(&sample.payload().to_bytes()).into_owned());
+    }
+    got.sort();
+    assert_eq!(got, vec!["edge pose", "operator correction"]);
+    Ok(())
+}

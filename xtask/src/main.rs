@@ -179,12 +179,15 @@ fn install(root: &Path, task: &Task) -> anyhow::Result<Option<PathBuf>> {
 const PYMAVLINK_VERSION: &str = "2.4.50";
 /// PyYAML, for the training data mixer's test.
 const PYYAML_VERSION: &str = "6.0.3";
+/// eclipse-zenoh for Python, an independent client of a secured fleet.
+const ECLIPSE_ZENOH_VERSION: &str = "1.10.2";
 
 /// `.pydeps/` under the workspace, holding pymavlink from the Python package
 /// index; the tests find it through `TOWERNAV_PYTHONPATH`.
 fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
     let dir = root.join(".pydeps");
-    // PyYAML beside it: the training data mixer's test reads data.yaml files.
+    // PyYAML beside it: the training data mixer's test reads data.yaml files;
+    // and eclipse-zenoh, a client of a secured fleet that is not ours.
     let installed = |name: &str, version: &str| {
         let want = format!("{name}-{version}.dist-info").to_lowercase();
         std::fs::read_dir(&dir).is_ok_and(|entries| {
@@ -193,7 +196,10 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
                 .any(|e| e.file_name().to_string_lossy().to_lowercase() == want)
         })
     };
-    if installed("pymavlink", PYMAVLINK_VERSION) && installed("pyyaml", PYYAML_VERSION) {
+    if installed("pymavlink", PYMAVLINK_VERSION)
+        && installed("pyyaml", PYYAML_VERSION)
+        && installed("eclipse_zenoh", ECLIPSE_ZENOH_VERSION)
+    {
         return Ok(());
     }
     run(Command::new("python3")
@@ -208,9 +214,10 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
         ])
         .arg(&dir)
         .arg(format!("pymavlink=={PYMAVLINK_VERSION}"))
-        .arg(format!("pyyaml=={PYYAML_VERSION}")))?;
+        .arg(format!("pyyaml=={PYYAML_VERSION}"))
+        .arg(format!("eclipse-zenoh=={ECLIPSE_ZENOH_VERSION}")))?;
     eprintln!(
-        "xtask: pymavlink {PYMAVLINK_VERSION} and PyYAML {PYYAML_VERSION} in {}",
+        "xtask: pymavlink {PYMAVLINK_VERSION}, PyYAML {PYYAML_VERSION} and eclipse-zenoh {ECLIPSE_ZENOH_VERSION} in {}",
         dir.display()
     );
     Ok(())
