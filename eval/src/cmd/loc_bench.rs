@@ -52,6 +52,10 @@ pub struct BenchRow {
     pub two_sigma_coverage: f64,
     /// Of bound track-frames, the share on their true tower.
     pub identity: f64,
+    /// Share of frames with a tower in view that gave a fix, level (roll
+    /// under 3 degrees) and banked (over 10 degrees): (frames, share).
+    pub fix_rate_level: (usize, f64),
+    pub fix_rate_banked: (usize, f64),
     /// Robust spread (1.4826 MAD) of the top and bottom edges of the
     /// detector's boxes against truth, for whole towers over 40 px matched
     /// at IoU 0.5, pixels.
@@ -98,6 +102,8 @@ pub fn fly(
     }
     let mut pipeline = Pipeline::new(config, map.clone());
     let (mut tops, mut bottoms) = (Vec::new(), Vec::new());
+    // (frames with a tower in view, of them with a fix), level and banked.
+    let (mut level, mut banked) = ((0usize, 0usize), (0usize, 0usize));
     let renderer = detector.as_ref().map(|_| scenario.renderer());
     let mut buffers = renderer.as_ref().map(|r| r.buffers());
     let mut identity = MotAccumulator::default();
@@ -120,6 +126,20 @@ pub fn fly(
             }
         }
         let out = pipeline.process(&frame);
+        if truth.boxes.iter().any(|b| scenario.demanded(b)) {
+            let roll = truth.pose.attitude.roll.abs().to_degrees();
+            let bin = if roll < 3.0 {
+                Some(&mut level)
+            } else if roll > 10.0 {
+                Some(&mut banked)
+            } else {
+                None
+            };
+            if let Some((seen, fixed)) = bin {
+                *seen += 1;
+                *fixed += usize::from(out.fix.is_some());
+            }
+        }
         add_frame(
             &mut identity,
             scenario,
@@ -154,6 +174,8 @@ pub fn fly(
         estimate_share: errors.len() as f64 / frames.max(1) as f64,
         two_sigma_coverage: inside as f64 / errors.len().max(1) as f64,
         identity: identity.finish().binding_accuracy,
+        fix_rate_level: (level.0, level.1 as f64 / level.0.max(1) as f64),
+        fix_rate_banked: (banked.0, banked.1 as f64 / banked.0.max(1) as f64),
         edge_error_px: robust_sigma(&mut tops).zip(robust_sigma(&mut bottoms)),
     })
 }
@@ -227,6 +249,12 @@ pub fn table(rows: &[BenchRow]) -> Table {
             format!("{:.1} %", 100.0 * r.estimate_share),
             format!("{:.1} %", 100.0 * r.two_sigma_coverage),
             format!("{:.2} %", 100.0 * r.identity),
+            format!(
+                "{:.1} % / {:.1} % ({} banked)",
+                100.0 * r.fix_rate_level.1,
+                100.0 * r.fix_rate_banked.1,
+                r.fix_rate_banked.0
+            ),
         ]);
     };
     for r in rows {
@@ -269,8 +297,15 @@ fn pooled<'a>(rows: impl Iterator<Item = &'a BenchRow>) -> BenchRow {
         estimate_share: n / frames.max(1) as f64,
         two_sigma_coverage: mean(&|r| r.two_sigma_coverage),
         identity: rows.iter().map(|r| r.identity).sum::<f64>() / rows.len().max(1) as f64,
+        fix_rate_level: pool_rate(rows.iter().map(|r| r.fix_rate_level)),
+        fix_rate_banked: pool_rate(rows.iter().map(|r| r.fix_rate_banked)),
         edge_error_px: None,
     }
+}
+
+fn pool_rate(rates: impl Iterator<Item = (usize, f64)>) -> (usize, f64) {
+    let (n, fixed) = rates.fold((0usize, 0.0), |(n, f), (m, r)| (n + m, f + r * m as f64));
+    (n, fixed / n.max(1) as f64)
 }
 
 pub fn write_all(options: &LocBenchOptions, out: &Path) -> anyhow::Result<()> {
@@ -310,6 +345,9 @@ mod tests {
         assert!(row.estimate_share > 0.5, "{row:?}");
         assert!(row.rms_m < 10.0, "{row:?}");
         assert!((0.0..=1.0).contains(&row.two_sigma_coverage));
+        // A turning flight has level and banked frames with towers in view.
+        assert!(row.fix_rate_level.0 > 100 && row.fix_rate_banked.0 > 20, "{row:?}");
+        assert!(row.fix_rate_level.1 > 0.5, "{row:?}");
         let all = pooled([&row, &row].into_iter());
         assert!((all.rms_m - row.rms_m).abs() < 1e-9);
         assert_eq!(all.frames, 2 * row.frames);
