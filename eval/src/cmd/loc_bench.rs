@@ -346,7 +346,10 @@ mod tests {
         assert!(row.rms_m < 10.0, "{row:?}");
         assert!((0.0..=1.0).contains(&row.two_sigma_coverage));
         // A turning flight has level and banked frames with towers in view.
-        assert!(row.fix_rate_level.0 > 100 && row.fix_rate_banked.0 > 20, "{row:?}");
+        assert!(
+            row.fix_rate_level.0 > 100 && row.fix_rate_banked.0 > 20,
+            "{row:?}"
+        );
         assert!(row.fix_rate_level.1 > 0.5, "{row:?}");
         let all = pooled([&row, &row].into_iter());
         assert!((all.rms_m - row.rms_m).abs() < 1e-9);
