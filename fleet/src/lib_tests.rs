@@ -1,6 +1,18 @@
 use super::*;
 use std::process::Command;
 
+/// `openssl verify` of `cert` against `ca`: `Some(passed)`, or `None` on a
+/// machine without openssl.
+fn openssl_verifies(ca: &std::path::Path, cert: &std::path::Path) -> Option<bool> {
+    let out = openssl(&[
+        "verify",
+        "-CAfile",
+        &ca.display().to_string(),
+        &cert.display().to_string(),
+    ])?;
+    Some(out.contains(": OK"))
+}
+
 fn openssl(args: &[&str]) -> Option<String> {
     let out = Command::new("openssl").args(args).output().ok()?;
     Some(format!(
@@ -34,13 +46,8 @@ fn issued_certificates_chain_to_the_fleet_ca_and_name_the_node() {
     );
     // An independent X.509 implementation agrees (when the machine has one).
     let (ca_pem, cert) = (dir.join(CA_FILE), gs.join(CERT_FILE));
-    if let Some(out) = openssl(&[
-        "verify",
-        "-CAfile",
-        &ca_pem.display().to_string(),
-        &cert.display().to_string(),
-    ]) {
-        assert!(out.contains(": OK"), "{out}");
+    if let Some(verified) = openssl_verifies(&ca_pem, &cert) {
+        assert!(verified, "openssl does not verify {}", cert.display());
         let text = openssl(&[
             "x509",
             "-noout",
@@ -95,13 +102,13 @@ fn rotation_and_revocation_rewrite_every_folder() {
         std::fs::read_to_string(gs.join(CERT_FILE)).expect("cert"),
         old_cert
     );
-    if let Some(out) = openssl(&[
-        "verify",
-        "-CAfile",
-        &dir.join(CA_FILE).display().to_string(),
-        &edge.join(CERT_FILE).display().to_string(),
-    ]) {
-        assert!(out.contains(": OK"), "{out}");
+    let (ca_pem, cert) = (dir.join(CA_FILE), edge.join(CERT_FILE));
+    if let Some(verified) = openssl_verifies(&ca_pem, &cert) {
+        assert!(verified, "the new CA does not sign {}", cert.display());
+        // Nor does the old CA sign the reissued certificate.
+        let old = tmp.path().join("old-ca.pem");
+        std::fs::write(&old, &old_ca).expect("old CA");
+        assert_eq!(openssl_verifies(&old, &cert), Some(false));
     }
     ca.revoke("edge-7").expect("revoke");
     assert!(!edge.exists());

@@ -112,19 +112,30 @@ async fn a_node_without_the_fleets_certificate_is_refused_at_connect() -> anyhow
     assert_eq!(peers(&gs).await, 0, "the ground station accepted a link");
     assert_eq!(peers(&stranger).await, 0);
     assert_eq!(peers(&impostor).await, 0);
-    // Nor can they read the landmark database.
+    // Nor can they read the landmark database, which answers every query.
     let keys = Keys::new(NodeId::new(FLEET)?);
-    let _queryable = gs
+    let queryable = gs
         .declare_queryable(keys.landmark_query())
         .await
         .map_err(anyhow_z)?;
+    let answering = tokio::spawn(async move {
+        while let Ok(query) = queryable.recv_async().await {
+            let _ = query.reply(query.key_expr().clone(), "landmarks").await;
+        }
+    });
+    let ask = |session: &Session| {
+        let (session, key) = (session.clone(), keys.landmark_query());
+        async move {
+            let replies = session
+                .get(key)
+                .timeout(Duration::from_millis(1000))
+                .await
+                .map_err(anyhow_z)?;
+            anyhow::Ok(replies.recv_async().await.is_ok())
+        }
+    };
     for rogue in [&stranger, &impostor] {
-        let replies = rogue
-            .get(keys.landmark_query())
-            .timeout(Duration::from_millis(500))
-            .await
-            .map_err(anyhow_z)?;
-        assert!(replies.recv_async().await.is_err(), "a rogue got a reply");
+        assert!(!ask(rogue).await?, "a rogue got a reply");
     }
     // The fleet's own edge does connect: the refusals above are not a broken setup.
     let edge = open(
@@ -135,6 +146,8 @@ async fn a_node_without_the_fleets_certificate_is_refused_at_connect() -> anyhow
     .await?;
     wait_for_peer(&edge, Duration::from_secs(10)).await?;
     assert_eq!(peers(&gs).await, 1);
+    assert!(ask(&edge).await?, "the fleet's edge got no landmarks");
+    answering.abort();
     Ok(())
 }
 

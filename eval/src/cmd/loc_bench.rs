@@ -261,7 +261,6 @@ pub fn table(rows: &[BenchRow]) -> Table {
         push(r.world_seed.to_string(), r);
     }
     let mut detectors: Vec<&str> = rows.iter().map(|r| r.detector.as_str()).collect();
-    detectors.dedup();
     detectors.sort();
     detectors.dedup();
     for name in detectors {
