@@ -4,6 +4,9 @@
 //! position), plus HEARTBEAT and STATUSTEXT. Pure: `autopilot_link` decides
 //! when, the shell sends them.
 //!
+//! Read the other way: the velocity in another component's ODOMETRY (a VIO or
+//! optical-flow estimator), for the filter to coast on.
+//!
 //! Accuracy fields come from the estimate's covariance and the fix type from
 //! how fresh the last tower fix is, so an autopilot stops trusting a coasting
 //! or lost estimate.
@@ -13,7 +16,7 @@ use mavlink::dialects::common::{
     GpsFixType, GpsInputIgnoreFlags, HEARTBEAT_DATA, MavAutopilot, MavEstimatorType, MavFrame,
     MavModeFlag, MavSeverity, MavState, MavType, ODOMETRY_DATA, STATUSTEXT_DATA,
 };
-use nalgebra::UnitQuaternion;
+use nalgebra::{UnitQuaternion, Vector3};
 use towernav_geometry::Attitude;
 use towernav_protocol::{EdgeState, Health, PoseEstimate};
 
@@ -33,7 +36,9 @@ pub fn accuracy_m(pose: &PoseEstimate) -> (f64, f64) {
 /// report (none before the first); `geoid_m` the geoid's height there, since
 /// GPS_INPUT's altitude is above mean sea level and the pose's is ellipsoidal.
 /// Velocity is not reported (flagged as ignored); without a pose, neither are
-/// altitude and accuracies.
+/// altitude and accuracies; with a pose whose height no source measured (the
+/// paper's method without a barometer), the altitude is flagged as not given
+/// and the fix is at most 2-D.
 pub fn gps_input(
     pose: Option<&PoseEstimate>,
     fix: GpsFixType,
@@ -41,11 +46,21 @@ pub fn gps_input(
     unix_time_us: u64,
 ) -> GPS_INPUT_DATA {
     let gps_s = (unix_time_us / 1_000_000).saturating_sub(GPS_EPOCH_UNIX_S) + GPS_LEAP_S;
-    let fixed = matches!(fix, GpsFixType::GPS_FIX_TYPE_3D_FIX);
     let mut ignore = GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_HORIZ
         | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VEL_VERT
         | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_SPEED_ACCURACY;
+    let mut fix = fix;
     let (lat, lon, alt, (h, v)) = match pose {
+        Some(p) if crate::localizer::Height::is_unknown(accuracy_m(p).1) => {
+            // No source measured the height: say so, and call it a 2-D fix.
+            ignore |= GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_ALT
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VDOP
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VERTICAL_ACCURACY;
+            if fix == GpsFixType::GPS_FIX_TYPE_3D_FIX {
+                fix = GpsFixType::GPS_FIX_TYPE_2D_FIX;
+            }
+            (p.lat_deg, p.lon_deg, 0.0, (accuracy_m(p).0, 0.0))
+        }
         Some(p) => (p.lat_deg, p.lon_deg, p.alt_m - geoid_m, accuracy_m(p)),
         None => {
             ignore |= GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_ALT
@@ -72,7 +87,11 @@ pub fn gps_input(
         gps_id: 0,
         fix_type: fix,
         // Autopilots' pre-arm checks count satellites; report a healthy count only with a fix.
-        satellites_visible: if fixed { 12 } else { 0 },
+        satellites_visible: if fix == GpsFixType::GPS_FIX_TYPE_3D_FIX {
+            12
+        } else {
+            0
+        },
         ..GPS_INPUT_DATA::DEFAULT
     }
 }
@@ -205,6 +224,65 @@ pub fn odometry(
     }
 }
 
+/// Velocities with no covariance are taken at this 1-sigma per axis, m/s.
+pub const DEFAULT_VELOCITY_SIGMA_MPS: f64 = 0.5;
+
+/// The velocity in another component's ODOMETRY (a visual-inertial odometry
+/// or optical-flow estimator), east-north-up in m/s with its covariance.
+/// Velocity given in the body (FRD) frame is turned into the world by the
+/// message's own attitude; in LOCAL_NED it is already there. Other frames, a
+/// missing velocity and a quality of -1 (the sender says it failed) give the
+/// reason it is not used.
+pub fn velocity_from_odometry(
+    o: &ODOMETRY_DATA,
+) -> Result<(Vector3<f64>, nalgebra::Matrix3<f64>), String> {
+    if o.quality == -1 {
+        return Err("its quality is -1 (failed)".into());
+    }
+    let v = Vector3::new(f64::from(o.vx), f64::from(o.vy), f64::from(o.vz));
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err("it carries no velocity".into());
+    }
+    // Upper triangle of the 6x6 (vx, vy, vz, rates): row 0 is 0..6, row 1 7..11, row 2 12..15.
+    let c = &o.velocity_covariance;
+    let covariance_frd_or_ned = if c[0].is_finite() {
+        let m = nalgebra::Matrix3::new(c[0], c[1], c[2], c[1], c[6], c[7], c[2], c[7], c[11])
+            .map(f64::from);
+        if !m.iter().all(|x| x.is_finite()) || (0..3).any(|i| m[(i, i)] <= 0.0) {
+            return Err("its velocity covariance is not positive".into());
+        }
+        m
+    } else {
+        nalgebra::Matrix3::identity() * DEFAULT_VELOCITY_SIGMA_MPS.powi(2)
+    };
+    // NED -> ENU as a matrix: swap north and east, negate down.
+    let enu_from_ned = nalgebra::Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
+    let world_from_frame = match o.child_frame_id {
+        MavFrame::MAV_FRAME_LOCAL_NED => enu_from_ned,
+        MavFrame::MAV_FRAME_BODY_FRD => {
+            let [w, x, y, z] = o.q.map(f64::from);
+            if ![w, x, y, z].iter().all(|c| c.is_finite()) || (w * w + x * x + y * y + z * z) < 0.5
+            {
+                return Err(
+                    "its velocity is in the body frame and its attitude is not valid".into(),
+                );
+            }
+            let ned_from_frd =
+                UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+            enu_from_ned * ned_from_frd.to_rotation_matrix().into_inner()
+        }
+        other => {
+            return Err(format!(
+                "its velocity is in {other:?}, not BODY_FRD or LOCAL_NED"
+            ));
+        }
+    };
+    Ok((
+        world_from_frame * v,
+        world_from_frame * covariance_frd_or_ned * world_from_frame.transpose(),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -269,6 +347,86 @@ mod tests {
             GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_ALT
                 | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_HORIZONTAL_ACCURACY
         ));
+    }
+
+    #[test]
+    fn a_height_no_source_measured_is_flagged_and_the_fix_is_2d() {
+        let mut p = pose();
+        let unknown = crate::localizer::Height::UNKNOWN_SIGMA_M;
+        p.covariance[2][2] = unknown * unknown;
+        let g = gps_input(Some(&p), GpsFixType::GPS_FIX_TYPE_3D_FIX, -12.5, 0);
+        assert_eq!(g.fix_type, GpsFixType::GPS_FIX_TYPE_2D_FIX);
+        assert!(g.ignore_flags.contains(
+            GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_ALT
+                | GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_VERTICAL_ACCURACY
+        ));
+        assert!(
+            !g.ignore_flags
+                .contains(GpsInputIgnoreFlags::GPS_INPUT_IGNORE_FLAG_HORIZONTAL_ACCURACY)
+        );
+        assert!((g.horiz_accuracy - 3.0).abs() < 1e-6);
+        assert_eq!(g.satellites_visible, 0);
+    }
+
+    fn vio(child: MavFrame, v: [f32; 3], q: [f32; 4]) -> ODOMETRY_DATA {
+        let mut velocity_covariance = [0f32; 21];
+        (
+            velocity_covariance[0],
+            velocity_covariance[6],
+            velocity_covariance[11],
+        ) = (0.04, 0.09, 0.16);
+        ODOMETRY_DATA {
+            vx: v[0],
+            vy: v[1],
+            vz: v[2],
+            q,
+            velocity_covariance,
+            child_frame_id: child,
+            frame_id: MavFrame::MAV_FRAME_LOCAL_NED,
+            quality: 80,
+            ..ODOMETRY_DATA::DEFAULT
+        }
+    }
+
+    #[test]
+    fn another_components_velocity_is_turned_into_the_world_frame() {
+        // Local NED: 2 m/s north, 1 east, 0.5 down.
+        let (v, c) = velocity_from_odometry(&vio(
+            MavFrame::MAV_FRAME_LOCAL_NED,
+            [2.0, 1.0, 0.5],
+            [1.0, 0.0, 0.0, 0.0],
+        ))
+        .expect("used");
+        assert!((v - Vector3::new(1.0, 2.0, -0.5)).norm() < 1e-6, "{v}");
+        // North's variance 0.04 becomes the second (north) axis of ENU.
+        assert!((c[(1, 1)] - 0.04).abs() < 1e-6 && (c[(0, 0)] - 0.09).abs() < 1e-6);
+        // Body FRD, heading 90 degrees (east): 3 m/s forward is 3 m/s east.
+        let half = std::f32::consts::FRAC_PI_4;
+        let east = vio(
+            MavFrame::MAV_FRAME_BODY_FRD,
+            [3.0, 0.0, 0.0],
+            [half.cos(), 0.0, 0.0, half.sin()],
+        );
+        let (v, c) = velocity_from_odometry(&east).expect("used");
+        assert!((v - Vector3::new(3.0, 0.0, 0.0)).norm() < 1e-5, "{v}");
+        assert!(
+            (c[(0, 0)] - 0.04).abs() < 1e-6,
+            "forward's variance is east's"
+        );
+        // Our own ODOMETRY carries no velocity; a failed or oddly framed one is refused.
+        let own = odometry(&pose(), &Attitude::level(0.0), 0, 100);
+        assert!(velocity_from_odometry(&own).is_err());
+        let failed = ODOMETRY_DATA {
+            quality: -1,
+            ..east.clone()
+        };
+        assert!(velocity_from_odometry(&failed).is_err());
+        let odd = ODOMETRY_DATA {
+            child_frame_id: MavFrame::MAV_FRAME_GLOBAL,
+            ..east
+        };
+        let reason = velocity_from_odometry(&odd).expect_err("refused");
+        assert!(reason.contains("MAV_FRAME_GLOBAL"), "{reason}");
     }
 
     #[test]

@@ -9,8 +9,9 @@
 //!   when there is no estimate: then GPS_INPUT says NO_FIX, so the autopilot
 //!   sees a lost fix, not a dead link.
 //! - The fix is 3-D only within `fresh_fix` of a tower fix; coasting, it is
-//!   2-D (its accuracy growing with the filter's covariance) up to
-//!   `coast_fix`, then none.
+//!   2-D (its accuracy growing with the filter's covariance) while that
+//!   covariance stays within `coast_max_sigma_m`, for at most `coast_fix`;
+//!   then none.
 //! - ODOMETRY at its own rate, the filter's estimate predicted to the moment
 //!   it goes out, with quality -1 once the pose is lost.
 //! - STATUSTEXT on every change of the fix.
@@ -54,8 +55,13 @@ pub struct LinkConfig {
     pub odometry_every: Option<Duration>,
     /// The fix is 3-D only this long after a tower fix.
     pub fresh_fix: Duration,
-    /// Coasting, the fix is 2-D this long after the last tower fix; then none.
+    /// Coasting, the fix is 2-D at most this long after the last tower fix;
+    /// then none.
     pub coast_fix: Duration,
+    /// Coasting, the fix is 2-D only while the predicted horizontal 1-sigma
+    /// (its ellipse's major axis) is within this, metres: a stalled camera
+    /// loses the fix as soon as the prediction is worth little.
+    pub coast_max_sigma_m: f64,
     /// The filter's white acceleration, m/s^2: how a prediction's error grows
     /// beyond its velocity's.
     pub accel_sigma: f64,
@@ -68,7 +74,8 @@ impl Default for LinkConfig {
             position: Some((PositionMessage::GpsInput, Duration::from_millis(200))),
             odometry_every: None,
             fresh_fix: Duration::from_secs(1),
-            coast_fix: Duration::from_secs(5),
+            coast_fix: Duration::from_secs(20),
+            coast_max_sigma_m: 10.0,
             accel_sigma: 1.5,
         }
     }
@@ -298,11 +305,15 @@ impl AutopilotLink {
             .map(|at| now.saturating_duration_since(at));
         let estimating = self.latest.is_some()
             && matches!(self.state, EdgeState::Localized | EdgeState::Coasting);
+        let worth_little = || {
+            self.predicted(now)
+                .is_none_or(|p| horizontal_sigma_m(&p) > self.config.coast_max_sigma_m)
+        };
         match since_fix {
             Some(age) if estimating && age <= self.config.fresh_fix => {
                 GpsFixType::GPS_FIX_TYPE_3D_FIX
             }
-            Some(age) if estimating && age <= self.config.coast_fix => {
+            Some(age) if estimating && age <= self.config.coast_fix && !worth_little() => {
                 GpsFixType::GPS_FIX_TYPE_2D_FIX
             }
             _ => GpsFixType::GPS_FIX_TYPE_NO_FIX,
@@ -395,6 +406,15 @@ impl AutopilotLink {
         self.out
             .push_back(MavMessage::STATUSTEXT(status_text(severity, text)));
     }
+}
+
+/// The horizontal 1-sigma along the major axis of the pose's ellipse.
+fn horizontal_sigma_m(pose: &PoseEstimate) -> f64 {
+    let c = &pose.covariance;
+    let (a, b, cross) = (c[0][0], c[1][1], c[0][1]);
+    (0.5 * (a + b) + (0.25 * (a - b).powi(2) + cross * cross).sqrt())
+        .max(0.0)
+        .sqrt()
 }
 
 /// The period after `due`, or half a period from `now` when the timer ran

@@ -113,7 +113,11 @@ fn heartbeat_and_no_fix_keep_going_with_no_estimate_at_all() {
 fn the_fix_is_3d_when_fresh_2d_coasting_and_none_when_lost_each_change_told() {
     let start = Instant::now();
     let at = |s: f64| start + Duration::from_secs_f64(s);
-    let mut link = link(LinkConfig::default(), start);
+    let config = LinkConfig {
+        coast_fix: Duration::from_secs(5),
+        ..LinkConfig::default()
+    };
+    let mut link = link(config, start);
     link.handle_estimate(
         at(0.0),
         Some(estimate(0.0, &["T1", "T2"])),
@@ -184,9 +188,20 @@ fn a_stalled_camera_degrades_the_fix_with_time_alone() {
     assert_eq!(kind(0.4), GpsFixType::GPS_FIX_TYPE_3D_FIX);
     assert_eq!(kind(3.0), GpsFixType::GPS_FIX_TYPE_2D_FIX);
     assert_eq!(kind(7.0), GpsFixType::GPS_FIX_TYPE_NO_FIX);
-    // Coasting, the reported accuracy grows with the predicted covariance.
-    let h: Vec<f32> = fixes[1..25].iter().map(|g| g.horiz_accuracy).collect();
-    assert!(h.windows(2).all(|w| w[1] > w[0]), "{h:?}");
+    // Coasting, the reported accuracy grows with the predicted covariance,
+    // and the fix is dropped once the prediction's 1-sigma passes 10 m,
+    // long before the 20 s time limit.
+    let coasting: Vec<&&GPS_INPUT_DATA> = fixes[1..]
+        .iter()
+        .take_while(|g| g.fix_type != GpsFixType::GPS_FIX_TYPE_NO_FIX)
+        .collect();
+    let h: Vec<f32> = coasting.iter().map(|g| g.horiz_accuracy).collect();
+    assert!(h.len() > 10 && h.windows(2).all(|w| w[1] > w[0]), "{h:?}");
+    let last = f64::from(*h.last().expect("coasted"));
+    assert!(
+        (10.0..15.0).contains(&last),
+        "dropped at {last} m (2-D RMS)"
+    );
     assert!(
         (fixes[0].horiz_accuracy - 2.0).abs() < 1e-3,
         "sqrt(2 + 2) at the fix"

@@ -18,6 +18,7 @@ use towernav_protocol::{
     NodeId, PoseEstimate, PoseMethod, StatusHeartbeat, TrackReport,
 };
 
+use crate::autopilot::velocity_from_odometry;
 use crate::autopilot_link::{AutopilotLink, LinkEstimate};
 use crate::landmarks::LandmarkMap;
 use crate::pipeline::{FrameOutput, Pipeline};
@@ -51,6 +52,9 @@ pub struct DetectedFrame {
     pub detections: Vec<Detection>,
     /// Whether the shell holds pixels of it (a preview can be made).
     pub has_image: bool,
+    /// The barometer's height above take-off at the frame, metres, when
+    /// the source knows it (the simulator, a flight log).
+    pub barometric_height_m: Option<f64>,
 }
 
 /// What the operator asks of the daemon.
@@ -141,6 +145,9 @@ pub struct DaemonCore {
     latency_us: Histogram<u64>,
     last_preview: Option<Instant>,
     autopilot: Option<AutopilotLink>,
+    /// The autopilot sends ALTITUDE: its relative altitude is preferred to
+    /// GLOBAL_POSITION_INT's.
+    altitude_source_seen: bool,
 }
 
 impl DaemonCore {
@@ -165,6 +172,7 @@ impl DaemonCore {
             latency_us: latency_histogram(),
             last_preview: None,
             autopilot: None,
+            altitude_source_seen: false,
         }
     }
 
@@ -180,6 +188,9 @@ impl DaemonCore {
 
     /// Runs the pipeline on one detected frame and queues its messages.
     pub fn handle_frame(&mut self, now: Instant, frame: DetectedFrame) {
+        if let Some(h) = frame.barometric_height_m {
+            self.pipeline.barometric_height(frame.time_s, h);
+        }
         let input = DetectionFrame {
             seq: frame.seq,
             time_s: frame.time_s,
@@ -271,6 +282,10 @@ impl DaemonCore {
                 self.pipeline.replace_map(map);
             }
             Command::FromAutopilot { from, message } => {
+                if self.autopilot.is_none() {
+                    return;
+                }
+                self.take_other_sensors(from, &message);
                 let Some(link) = self.autopilot.as_mut() else {
                     return;
                 };
@@ -301,6 +316,35 @@ impl DaemonCore {
                     self.pipeline.hint_position(self.last_time_s, point);
                 }
             }
+        }
+    }
+
+    /// What the filter can use from the autopilot's messages: another
+    /// component's velocity (ODOMETRY from a VIO or optical-flow estimator;
+    /// the edge's own carries none) and the barometric height above home
+    /// (ALTITUDE, else GLOBAL_POSITION_INT's relative altitude).
+    fn take_other_sensors(&mut self, from: (u8, u8), message: &MavMessage) {
+        let time_s = self.last_time_s;
+        match message {
+            MavMessage::ODOMETRY(o) => match velocity_from_odometry(o) {
+                Ok((v, c)) => {
+                    let fused = self.pipeline.fuse_velocity(time_s, &v, &c);
+                    tracing::trace!(?from, fused, "outside velocity");
+                }
+                Err(reason) => {
+                    tracing::debug!(?from, %reason, "an ODOMETRY's velocity is not used");
+                }
+            },
+            MavMessage::ALTITUDE(a) if a.altitude_relative.is_finite() => {
+                self.altitude_source_seen = true;
+                self.pipeline
+                    .barometric_height(time_s, f64::from(a.altitude_relative));
+            }
+            MavMessage::GLOBAL_POSITION_INT(p) if !self.altitude_source_seen => {
+                self.pipeline
+                    .barometric_height(time_s, f64::from(p.relative_alt) / 1000.0);
+            }
+            _ => {}
         }
     }
 

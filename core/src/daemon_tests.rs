@@ -41,6 +41,7 @@ fn frame(seq: u64, at: Instant, start: Instant) -> DetectedFrame {
         attitude: Attitude::default(),
         detections: Vec::new(),
         has_image: true,
+        barometric_height_m: None,
     }
 }
 
@@ -251,6 +252,37 @@ fn core_with_autopilot(start: Instant) -> DaemonCore {
         start,
         1_795_305_600_000_000,
     ))
+}
+
+#[test]
+fn the_autopilot_s_barometric_height_reaches_the_pipeline_altitude_first() {
+    use mavlink::dialects::common::{ALTITUDE_DATA, GLOBAL_POSITION_INT_DATA, MavMessage};
+
+    let start = Instant::now();
+    let mut core = core_with_autopilot(start);
+    let position = |relative_mm| Command::FromAutopilot {
+        from: (1, 1),
+        message: MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            relative_alt: relative_mm,
+            ..GLOBAL_POSITION_INT_DATA::DEFAULT
+        }),
+    };
+    core.handle_command(start, position(31_500));
+    assert_eq!(core.pipeline().barometer().map(|b| b.1), Some(31.5));
+    core.handle_command(
+        start,
+        Command::FromAutopilot {
+            from: (1, 1),
+            message: MavMessage::ALTITUDE(ALTITUDE_DATA {
+                altitude_relative: 29.0,
+                ..ALTITUDE_DATA::DEFAULT
+            }),
+        },
+    );
+    assert_eq!(core.pipeline().barometer().map(|b| b.1), Some(29.0));
+    // Once ALTITUDE comes, GLOBAL_POSITION_INT's fused height is not taken.
+    core.handle_command(start, position(50_000));
+    assert_eq!(core.pipeline().barometer().map(|b| b.1), Some(29.0));
 }
 
 #[test]

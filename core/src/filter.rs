@@ -2,9 +2,11 @@
 //! acceleration) that fuses per-frame fixes, gates them by their innovation,
 //! coasts through frames with no tower, and says when it has lost the pose.
 //!
-//! After an outage: `report_coast_s` (5 s) after the last accepted fix the
-//! filter stops reporting; its prediction still guides tower identity until
-//! `max_coast_s` (20 s), when it is lost and the next good fix restarts it. A run of
+//! After an outage the filter coasts, reporting while its horizontal 1-sigma
+//! stays within `max_report_sigma_m`: how long that lasts follows from how
+//! well the velocity was known (and any velocity fused meanwhile), not from a
+//! clock. Its prediction still guides tower identity until `max_coast_s`
+//! (20 s) after the last fix, when it is lost and the next good fix restarts it. A run of
 //! `restart_after_rejections` rejected fixes also restarts it from the newest
 //! fix: a filter that rejects everything has itself gone wrong. A restart needs
 //! a fix from two or more towers, and after a loss one within reach of the
@@ -22,9 +24,12 @@ pub struct FilterParams {
     /// Chi-square gate on the 3-D innovation (99.9 %).
     pub gate_chi2: f64,
     pub max_coast_s: f64,
-    /// Estimates are reported only this long after the last accepted fix; the
+    /// Estimates are reported only while the horizontal position's 1-sigma
+    /// (the major axis of its ellipse) is at most this, metres; the
     /// prediction lives on (for identity) until `max_coast_s`.
-    pub report_coast_s: f64,
+    pub max_report_sigma_m: f64,
+    /// Chi-square gate on a 3-D velocity measurement's innovation (99.9 %).
+    pub velocity_gate_chi2: f64,
     /// Velocity correlation time: with no fixes the predicted velocity decays
     /// toward zero with this time constant, so a long gap (a turn) does not fly
     /// the prediction off along the old track.
@@ -36,6 +41,12 @@ pub struct FilterParams {
     /// share slowly varying errors (the IMU heading, box biases of the same
     /// towers), which a filter assuming independent fixes would average away.
     pub fix_covariance_scale: f64,
+    /// The share of a fix's covariance that no averaging removes (errors
+    /// that persist from frame to frame: the AHRS's slowly wandering roll
+    /// and pitch, a box's systematic offset on one tower, the survey's
+    /// error): added to what is reported, so the filter never claims to
+    /// know the position much better than one fix does.
+    pub persistent_share: f64,
     /// A (re)start needs a fix from at least this many towers: one tower's
     /// fix cannot reveal its own wrong identity or false box.
     pub min_restart_towers: usize,
@@ -52,11 +63,13 @@ impl Default for FilterParams {
             accel_sigma_v: 0.5,
             gate_chi2: 16.27,
             max_coast_s: 20.0,
-            report_coast_s: 5.0,
+            max_report_sigma_m: 10.0,
+            velocity_gate_chi2: 16.27,
             velocity_tau_s: 8.0,
             restart_after_rejections: 15,
             initial_velocity_sigma: 15.0,
             fix_covariance_scale: 3.0,
+            persistent_share: 0.5,
             min_restart_towers: 2,
             max_speed_mps: 20.0,
             restart_slack_m: 30.0,
@@ -104,6 +117,8 @@ struct State {
     x: Vector6<f64>,
     p: Matrix6<f64>,
     last_update_s: f64,
+    /// The last accepted fix's position covariance.
+    fix_covariance: Matrix3<f64>,
 }
 
 impl PoseFilter {
@@ -208,13 +223,15 @@ impl PoseFilter {
         let Some(s) = &self.state else {
             return (None, verdict);
         };
-        if time_s - s.last_update_s > self.params.report_coast_s {
+        if horizontal_sigma(&s.p.fixed_view::<2, 2>(0, 0).into_owned())
+            > self.params.max_report_sigma_m
+        {
             return (None, verdict);
         }
         let mut covariance = Matrix4::zeros();
-        covariance
-            .fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&s.p.fixed_view::<3, 3>(0, 0));
+        covariance.fixed_view_mut::<3, 3>(0, 0).copy_from(
+            &(s.p.fixed_view::<3, 3>(0, 0) + s.fix_covariance * self.params.persistent_share),
+        );
         let (yaw, yaw_var) = match fix {
             Some(f) if verdict != FixVerdict::Rejected => (f.yaw, f.covariance[(3, 3)]),
             _ => (imu_yaw, imu_yaw_variance),
@@ -250,6 +267,7 @@ impl PoseFilter {
             x,
             p,
             last_update_s: time_s,
+            fix_covariance: fix.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
         });
         self.rejections = 0;
     }
@@ -284,6 +302,49 @@ impl PoseFilter {
         s.time_s = time_s;
     }
 
+    /// Fuses a velocity measured by another source (visual-inertial
+    /// odometry, optical flow), east-north-up in m/s, at `time_s`: it slows
+    /// how fast the position's uncertainty grows while no tower is in view.
+    /// `false` when there is no state to fuse into, the measurement is from
+    /// before the state, or its innovation fails the gate.
+    pub fn update_velocity(
+        &mut self,
+        time_s: f64,
+        velocity_in_world: &Vector3<f64>,
+        covariance: &Matrix3<f64>,
+    ) -> bool {
+        let gate = self.params.velocity_gate_chi2;
+        if self
+            .state
+            .as_ref()
+            .is_none_or(|s| time_s < s.time_s || time_s - s.last_update_s > self.params.max_coast_s)
+        {
+            return false;
+        }
+        self.predict(time_s);
+        let Some(s) = &mut self.state else {
+            return false;
+        };
+        let mut h = SMatrix::<f64, 3, 6>::zeros();
+        for i in 0..3 {
+            h[(i, i + 3)] = 1.0;
+        }
+        let innovation = velocity_in_world - s.x.fixed_rows::<3>(3);
+        let cov = h * s.p * h.transpose() + covariance;
+        let Some(cov_inv) = cov.try_inverse() else {
+            return false;
+        };
+        let nis = (innovation.transpose() * cov_inv * innovation)[(0, 0)];
+        if !nis.is_finite() || nis > gate {
+            return false;
+        }
+        let gain = s.p * h.transpose() * cov_inv;
+        s.x += gain * innovation;
+        let i_kh = Matrix6::identity() - gain * h;
+        s.p = i_kh * s.p * i_kh.transpose() + gain * covariance * gain.transpose();
+        true
+    }
+
     /// Fuse a fix's position; `false` if its innovation fails the gate.
     fn update(&mut self, fix: &Fix) -> bool {
         let gate = self.params.gate_chi2;
@@ -311,8 +372,16 @@ impl PoseFilter {
         let i_kh = Matrix6::identity() - gain * h;
         s.p = i_kh * s.p * i_kh.transpose() + gain * r * gain.transpose();
         s.last_update_s = s.time_s;
+        s.fix_covariance = fix.covariance.fixed_view::<3, 3>(0, 0).into_owned();
         true
     }
+}
+
+/// The horizontal position's 1-sigma along its ellipse's major axis.
+fn horizontal_sigma(p: &nalgebra::Matrix2<f64>) -> f64 {
+    let (a, b, c) = (p[(0, 0)], p[(1, 1)], p[(0, 1)]);
+    let major = 0.5 * (a + b) + (0.25 * (a - b).powi(2) + c * c).sqrt();
+    major.max(0.0).sqrt()
 }
 
 /// Over `dt` with velocity correlation time `tau`: how far a unit velocity
@@ -369,6 +438,83 @@ mod tests {
         );
         assert!(gap.covariance[(0, 0)] > before.covariance[(0, 0)]);
         assert!(!gap.updated && (gap.coast_s - 1.0).abs() < 1e-9);
+    }
+
+    /// Tracks a UAV flying east at 10 m/s for 2 s, then coasts.
+    fn tracked() -> PoseFilter {
+        let mut f = PoseFilter::new(FilterParams::default());
+        for i in 0..=60 {
+            let t = f64::from(i) / 30.0;
+            f.step(t, Some(&fix_at(10.0 * t, 0.0, 1.0)), 0.0, 1e-4);
+        }
+        f
+    }
+
+    /// Seconds of coast (from 2 s) until the filter stops reporting, and the
+    /// largest horizontal 1-sigma it reported meanwhile.
+    fn coast(f: &mut PoseFilter, velocity: Option<(f64, f64)>) -> (f64, f64) {
+        let mut largest: f64 = 0.0;
+        for i in 1..=600 {
+            let t = 2.0 + f64::from(i) / 30.0;
+            if let Some((v, sigma)) = velocity {
+                let c = Matrix3::identity() * sigma * sigma;
+                f.update_velocity(t, &Vector3::new(v, 0.0, 0.0), &c);
+            }
+            match f.step(t, None, 0.0, 1e-4).0 {
+                Some(e) => {
+                    largest = largest.max(e.covariance[(0, 0)].max(e.covariance[(1, 1)]).sqrt())
+                }
+                None => return (t - 2.0, largest),
+            }
+        }
+        (20.0, largest)
+    }
+
+    #[test]
+    fn the_coast_ends_when_the_covariance_says_so_and_a_fused_velocity_prolongs_it() {
+        let sigma_max = FilterParams::default().max_report_sigma_m;
+        let (alone, largest) = coast(&mut tracked(), None);
+        assert!(largest <= sigma_max + 1e-9, "{largest}");
+        assert!((1.0..10.0).contains(&alone), "coasted {alone} s");
+        let (with_velocity, largest) = coast(&mut tracked(), Some((10.0, 0.2)));
+        assert!(largest <= sigma_max + 1e-9, "{largest}");
+        assert!(
+            with_velocity > 2.0 * alone,
+            "{with_velocity} s with a velocity against {alone} s without"
+        );
+        // The fused velocity carries the prediction at 10 m/s for 5 s; the
+        // prediction alone slows with the velocity's correlation time (57 m).
+        let mut g = tracked();
+        for i in 1..=150 {
+            let t = 2.0 + f64::from(i) / 30.0;
+            g.update_velocity(
+                t,
+                &Vector3::new(10.0, 0.0, 0.0),
+                &(Matrix3::identity() * 0.04),
+            );
+        }
+        let p = g.predicted_position(7.0).expect("tracking");
+        assert!((p.x - 70.0).abs() < 3.0, "{p}");
+    }
+
+    #[test]
+    fn a_velocity_is_gated_and_needs_a_state() {
+        let mut f = PoseFilter::new(FilterParams::default());
+        let c = Matrix3::identity() * 0.01;
+        assert!(
+            !f.update_velocity(0.0, &Vector3::new(1.0, 0.0, 0.0), &c),
+            "no state yet"
+        );
+        let mut f = tracked();
+        assert!(
+            !f.update_velocity(2.1, &Vector3::new(60.0, 0.0, 0.0), &c),
+            "60 m/s against 10"
+        );
+        assert!(
+            !f.update_velocity(1.0, &Vector3::new(10.0, 0.0, 0.0), &c),
+            "from before the state"
+        );
+        assert!(f.update_velocity(2.1, &Vector3::new(10.5, 0.0, 0.0), &c));
     }
 
     #[test]

@@ -13,7 +13,9 @@ use towernav_protocol::{Detection, DetectionFrame, TowerType};
 use crate::filter::{Estimate, FilterParams, FixVerdict, PoseFilter};
 use crate::identity::{Identity, IdentityParams, View};
 use crate::landmarks::LandmarkMap;
-use crate::localizer::{Fix, LocalizerParams, Method, Observation, paper_lbl, robust_lbl};
+use crate::localizer::{
+    Fix, Height, LocalizerParams, Method, Observation, paper_lbl, robust_lbl_with_height,
+};
 use crate::tracker::{CameraMotion, SortParams, SortTracker, TrackOutput, Tracker, TrackerInput};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -32,6 +34,8 @@ pub struct PipelineConfig {
     pub compare_paper: bool,
     /// Only towers within this distance of the pose guess are candidates for a new track.
     pub landmark_radius_m: f64,
+    /// 1-sigma of the barometer's height above take-off, metres.
+    pub barometer_sigma_m: f64,
 }
 
 impl PipelineConfig {
@@ -46,6 +50,7 @@ impl PipelineConfig {
             filter: Some(FilterParams::default()),
             compare_paper: false,
             landmark_radius_m: 1500.0,
+            barometer_sigma_m: 2.0,
         }
     }
 }
@@ -101,7 +106,12 @@ pub struct Pipeline {
     last_known: Option<Point3<f64>>,
     /// Each live track's type as last seen: a correction must agree with it.
     track_types: std::collections::HashMap<u64, TowerType>,
+    /// The newest barometric height above take-off: (time, metres).
+    barometer: Option<(f64, f64)>,
 }
+
+/// A barometer reading older than this, seconds, no longer gives a frame its height.
+pub const BAROMETER_MAX_AGE_S: f64 = 1.0;
 
 /// How much of an outside id a refusal repeats: a reason names what it
 /// refused, it does not echo a 64 KiB payload back.
@@ -131,7 +141,43 @@ impl Pipeline {
             prev_attitude: None,
             last_known: None,
             track_types: std::collections::HashMap::new(),
+            barometer: None,
         }
+    }
+
+    /// The autopilot's barometric height above the take-off point at
+    /// `time_s`: the paper's method takes its height from it (see
+    /// [`crate::localizer::Height`]).
+    pub fn barometric_height(&mut self, time_s: f64, above_takeoff_m: f64) {
+        if above_takeoff_m.is_finite() {
+            self.barometer = Some((time_s, above_takeoff_m));
+        }
+    }
+
+    /// The newest barometric height above take-off: (time, metres).
+    pub fn barometer(&self) -> Option<(f64, f64)> {
+        self.barometer
+    }
+
+    /// A velocity from another source (visual-inertial odometry, optical
+    /// flow), east-north-up m/s with its covariance, fused into the filter:
+    /// through a gap with no tower in view the position's uncertainty then
+    /// grows with that velocity's error, and the coast lasts longer. `false`
+    /// when it was not fused (no filter, nothing tracked, or it disagreed).
+    pub fn fuse_velocity(
+        &mut self,
+        time_s: f64,
+        velocity_in_world: &Vector3<f64>,
+        covariance: &nalgebra::Matrix3<f64>,
+    ) -> bool {
+        let valid = velocity_in_world.iter().all(|v| v.is_finite())
+            && covariance.iter().all(|v| v.is_finite())
+            && (0..3).all(|i| covariance[(i, i)] > 0.0);
+        valid
+            && self
+                .filter
+                .as_mut()
+                .is_some_and(|f| f.update_velocity(time_s, velocity_in_world, covariance))
     }
 
     pub fn map(&self) -> &LandmarkMap {
@@ -374,21 +420,36 @@ impl Pipeline {
             })
             .collect();
         let params = &self.config.localizer;
+        // The camera's height: the take-off point's, the barometer's climb
+        // since, and the mount's lever arm.
+        let lever = self.lever_arm_in_world(Some(&frame.imu_attitude));
+        let barometric = match self.barometer {
+            Some((t, h)) if (frame.time_s - t).abs() <= BAROMETER_MAX_AGE_S => Some(Height {
+                up_m: self.config.takeoff_in_world.z + h + lever.z,
+                sigma_m: self.config.barometer_sigma_m,
+            }),
+            _ => None,
+        };
+        let height = barometric.unwrap_or_else(|| {
+            Height::unknown(predicted.unwrap_or(self.config.takeoff_in_world).z)
+        });
         let paper = || {
             paper_lbl(
                 &observations,
                 &self.view.ideal.intrinsics,
                 frame.imu_attitude.yaw,
+                height,
                 params,
             )
         };
         let fix = match self.config.method {
             Method::Paper => paper(),
-            Method::Rays => robust_lbl(
+            Method::Rays => robust_lbl_with_height(
                 &observations,
                 &self.view.ideal,
                 &frame.imu_attitude,
                 predicted,
+                barometric,
                 params,
             )
             .map(|r| r.fix),

@@ -166,7 +166,9 @@ fn autopilot_link(config: &EdgeConfig, datum: Datum) -> AutopilotLink {
         .map_or(0, |d| d.as_micros() as u64);
     let accel_sigma = towernav_core::filter::FilterParams::default().accel_sigma_h;
     AutopilotLink::new(
-        config.mavlink.link_config(accel_sigma),
+        config
+            .mavlink
+            .link_config(accel_sigma, config.pipeline.max_coast_sigma_m),
         datum,
         Instant::now(),
         unix_now_us,
@@ -187,6 +189,9 @@ pub(crate) fn pipeline_for(
     // A model's boxes stray further than the oracle's (the pipeline's default).
     if config.detector.kind == DetectorKind::Yolo {
         pipeline_config.localizer.edge_sigma_px = config.detector.edge_sigma_px;
+    }
+    if let Some(filter) = pipeline_config.filter.as_mut() {
+        filter.max_report_sigma_m = config.pipeline.max_coast_sigma_m;
     }
     if !config.pipeline.filter {
         pipeline_config.filter = None;

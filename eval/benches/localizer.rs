@@ -4,7 +4,7 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use towernav_core::LandmarkMap;
 use towernav_core::filter::{FilterParams, PoseFilter};
-use towernav_core::localizer::{LocalizerParams, Observation, paper_lbl, robust_lbl};
+use towernav_core::localizer::{Height, LocalizerParams, Observation, paper_lbl, robust_lbl};
 use towernav_sim::{Scenario, World};
 
 fn localizer(c: &mut Criterion) {
@@ -56,6 +56,7 @@ fn localizer(c: &mut Criterion) {
                 &observations,
                 &scenario.camera.intrinsics,
                 frame.imu_attitude.yaw,
+                Height::unknown(30.0),
                 &params,
             )
         })

@@ -4,6 +4,7 @@
 //!
 //! Pure: no I/O, no clocks, no global state. Same seed, same frames.
 
+pub mod barometer;
 pub mod flight;
 pub mod gnss;
 pub mod landmark_world;
@@ -19,6 +20,7 @@ pub mod viewpoint;
 pub mod waypoints;
 pub mod world;
 
+pub use barometer::{Barometer, BarometerParams};
 pub use flight::{Flight, StraightFlight};
 pub use oracle::{OracleDetector, OracleParams};
 pub use render::lens::LensEffects;

@@ -17,8 +17,8 @@ use towernav_geometry::{Intrinsics, PixelBox};
 
 use crate::landmarks::MapTower;
 
-pub use paper::{paper_lbl, paper_range};
-pub use robust::{RobustFix, robust_lbl};
+pub use paper::{Height, paper_lbl, paper_range};
+pub use robust::{RobustFix, robust_lbl, robust_lbl_with_height};
 pub use single::single_tower_position;
 
 /// Which per-frame estimator the pipeline runs.

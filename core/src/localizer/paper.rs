@@ -1,8 +1,14 @@
 //! The paper's localization by landmarks (LbL), as method.md restates it.
 //!
 //! Per tower: `D = f H / h` along the optical axis, `E = e H / h` to the right,
-//! `p_uav = p_tower - R(yaw) (E, D)`, and the camera height from the foot's row.
-//! Several towers: the plain mean. The camera is taken as level.
+//! `p_uav = p_tower - R(yaw) (E, D)`. Several towers: the plain mean. The
+//! camera is taken as level.
+//!
+//! The paper took the height from the foot's row as well; with the camera
+//! pitched that gives heights from tens of metres below ground to over a
+//! hundred above, which an autopilot must never get. The height comes from
+//! outside instead ([`Height`]): the take-off point plus the barometer, or
+//! marked unknown by a spread no one would fuse.
 
 use nalgebra::{Matrix2, Matrix4, Point3, Vector2};
 use towernav_geometry::{Intrinsics, PixelBox};
@@ -16,10 +22,38 @@ pub fn paper_range(k: &Intrinsics, tower_height_m: f64, bbox: &PixelBox) -> (f64
     (d, (bbox.center_x() - k.cx) * d / k.fx)
 }
 
+/// The height the paper's fix reports, from a source other than its boxes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Height {
+    /// Up, metres in the world frame.
+    pub up_m: f64,
+    /// 1-sigma, metres.
+    pub sigma_m: f64,
+}
+
+impl Height {
+    /// 1-sigma given to a height no source measured: far beyond any use, so
+    /// the autopilot link flags the altitude as not given.
+    pub const UNKNOWN_SIGMA_M: f64 = 1000.0;
+
+    /// A placeholder height that says it is unknown.
+    pub fn unknown(up_m: f64) -> Self {
+        Self {
+            up_m,
+            sigma_m: Self::UNKNOWN_SIGMA_M,
+        }
+    }
+
+    pub fn is_unknown(sigma_m: f64) -> bool {
+        sigma_m >= 0.5 * Self::UNKNOWN_SIGMA_M
+    }
+}
+
 pub fn paper_lbl(
     observations: &[Observation<'_>],
     k: &Intrinsics,
     yaw: f64,
+    height: Height,
     params: &LocalizerParams,
 ) -> Option<Fix> {
     let forward = Vector2::new(yaw.cos(), yaw.sin());
@@ -37,25 +71,18 @@ pub fn paper_lbl(
         }
         let big_h = o.tower.height_m;
         let (d, e) = paper_range(k, big_h, b);
-        let above_foot = (b.bottom - k.cy) * d / k.fy;
         let horizontal = o.tower.foot_in_world.xy().coords - (right * e + forward * d);
-        sum += nalgebra::Vector3::new(
-            horizontal.x,
-            horizontal.y,
-            o.tower.foot_in_world.z + above_foot,
-        );
+        sum += nalgebra::Vector3::new(horizontal.x, horizontal.y, 0.0);
 
         // First-order spread: sigma_D = D^2/(f H) sigma_h; E and height scale with D.
         let sigma_d = d * d / (k.fy * big_h) * sigma_h;
         let sigma_e =
             (e / d).abs() * sigma_d + d / k.fx * params.edge_sigma_px + d * params.yaw_sigma;
-        let sigma_up = (above_foot / d).abs() * sigma_d + d / k.fy * params.edge_sigma_px;
         let rot = Matrix2::from_columns(&[right, forward]);
         let cov_en =
             rot * Matrix2::new(sigma_e * sigma_e, 0.0, 0.0, sigma_d * sigma_d) * rot.transpose();
         let mut cov = Matrix4::zeros();
         cov.fixed_view_mut::<2, 2>(0, 0).copy_from(&cov_en);
-        cov[(2, 2)] = sigma_up * sigma_up;
         cov_sum += cov;
         used.push(o.tower.id.clone());
     }
@@ -64,9 +91,12 @@ pub fn paper_lbl(
     }
     let n = used.len() as f64;
     let mut covariance = cov_sum / (n * n);
+    covariance[(2, 2)] = height.sigma_m * height.sigma_m;
     covariance[(3, 3)] = params.yaw_sigma * params.yaw_sigma;
+    let mut position = Point3::from(sum / n);
+    position.z = height.up_m;
     Some(Fix {
-        position_in_world: Point3::from(sum / n),
+        position_in_world: position,
         yaw,
         covariance,
         towers_used: used,
@@ -102,7 +132,8 @@ mod tests {
             let b = ahead(220.0, -60.0);
             let towers = [tower("B1", a.x, a.y, 38.0), tower("B2", b.x, b.y, 45.0)];
             let obs: Vec<_> = towers.iter().map(|t| Observation { tower: t, bbox: label(&camera, &pose, t), score: 0.9 , lens_stretch: 1.0}).collect();
-            let fix = paper_lbl(&obs, &camera.intrinsics, yaw, &LocalizerParams::default()).expect("fix");
+            let height = Height { up_m: z, sigma_m: 1.0 };
+            let fix = paper_lbl(&obs, &camera.intrinsics, yaw, height, &LocalizerParams::default()).expect("fix");
             prop_assert!((fix.position_in_world - pose.position_in_world).norm() < 1e-6);
             prop_assert_eq!(fix.towers_used.len(), 2);
             prop_assert!(fix.covariance[(0, 0)] > 0.0 && fix.covariance[(1, 1)] > 0.0);
@@ -125,7 +156,16 @@ mod tests {
             score: 0.9,
             lens_stretch: 1.0,
         };
-        assert!(paper_lbl(&[tiny, cut], &k, 0.0, &LocalizerParams::default()).is_none());
+        assert!(
+            paper_lbl(
+                &[tiny, cut],
+                &k,
+                0.0,
+                Height::unknown(30.0),
+                &LocalizerParams::default()
+            )
+            .is_none()
+        );
     }
 
     #[test]
@@ -143,9 +183,15 @@ mod tests {
                 score: 0.9,
                 lens_stretch: 1.0,
             }];
-            paper_lbl(&obs, &camera.intrinsics, 0.0, &LocalizerParams::default())
-                .expect("fix")
-                .covariance[(0, 0)]
+            paper_lbl(
+                &obs,
+                &camera.intrinsics,
+                0.0,
+                Height::unknown(30.0),
+                &LocalizerParams::default(),
+            )
+            .expect("fix")
+            .covariance[(0, 0)]
                 .sqrt()
         };
         let ratio = sigma_forward(200.0) / sigma_forward(100.0);

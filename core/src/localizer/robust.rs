@@ -8,7 +8,7 @@ use towernav_geometry::{Attitude, PinholeCamera, wrap_angle};
 
 use super::measurement::{Residual, Usable, residuals};
 use super::single::single_tower_position;
-use super::{Fix, LocalizerParams, Observation};
+use super::{Fix, Height, LocalizerParams, Observation};
 use towernav_geometry::FrameCamera;
 
 /// Chi-square at 99.9 % for 1, 2 and 3 degrees of freedom: a tower whose
@@ -45,11 +45,29 @@ pub fn robust_lbl(
     prior_position: Option<Point3<f64>>,
     params: &LocalizerParams,
 ) -> Option<RobustFix> {
+    robust_lbl_with_height(observations, camera, imu, prior_position, None, params)
+}
+
+/// [`robust_lbl`] with the camera's height measured by another sensor (the
+/// barometer): one more measured number, so one tower cut by the image edge
+/// (its foot row and axis column left) still gives a fix, as banked turns
+/// often leave it.
+pub fn robust_lbl_with_height(
+    observations: &[Observation<'_>],
+    camera: &PinholeCamera,
+    imu: &Attitude,
+    prior_position: Option<Point3<f64>>,
+    height: Option<Height>,
+    params: &LocalizerParams,
+) -> Option<RobustFix> {
     let frame = FrameCamera::new(camera, imu);
     let mut cands = candidates(observations, camera, params);
     if cands.is_empty() {
         return None;
     }
+    let height =
+        height.filter(|h| h.up_m.is_finite() && h.sigma_m > 0.0 && !Height::is_unknown(h.sigma_m));
+    let extra_rows = usize::from(height.is_some());
     let mut scratch = Vec::with_capacity(3);
     let mut position = best_start(
         &cands,
@@ -65,7 +83,13 @@ pub fn robust_lbl(
     // Solve, gate the worst tower, re-solve from there, until all pass.
     let mut information;
     loop {
-        let solved = solve(&cands, &frame, position, yaw, imu.yaw, params, &mut scratch)?;
+        let state = State {
+            position,
+            yaw,
+            imu_yaw: imu.yaw,
+            height,
+        };
+        let solved = solve(&cands, &frame, state, params, &mut scratch)?;
         (position, yaw, information) = solved;
         let worst = cands
             .iter()
@@ -77,7 +101,7 @@ pub fn robust_lbl(
             })
             .max_by(|a, b| a.1.total_cmp(&b.1));
         match worst {
-            Some((i, ratio)) if ratio > 1.0 && rows_without(&cands, i) >= MIN_ROWS => {
+            Some((i, ratio)) if ratio > 1.0 && rows_without(&cands, i) + extra_rows >= MIN_ROWS => {
                 cands[i].active = false
             }
             _ => break,
@@ -85,7 +109,7 @@ pub fn robust_lbl(
     }
     // Three position unknowns need three measured numbers (yaw has its prior);
     // fewer, or a geometry that leaves a direction unseen, is no fix.
-    if rows_without(&cands, usize::MAX) < MIN_ROWS {
+    if rows_without(&cands, usize::MAX) + extra_rows < MIN_ROWS {
         return None;
     }
     let covariance = covariance_if_observable(&information)?;
@@ -226,17 +250,26 @@ struct Linearized {
     g: Vector4<f64>,
 }
 
+/// Where the solver stands, and the priors it weighs: the IMU's yaw and the
+/// barometer's height.
+#[derive(Debug, Clone, Copy)]
+struct State {
+    position: Point3<f64>,
+    yaw: f64,
+    imu_yaw: f64,
+    height: Option<Height>,
+}
+
 fn linearize(
     cands: &[Candidate<'_, '_>],
     frame: &FrameCamera,
-    position: &Point3<f64>,
-    yaw: f64,
-    imu_yaw: f64,
+    state: &State,
     params: &LocalizerParams,
     scratch: &mut Vec<Residual>,
 ) -> Linearized {
+    let (position, yaw) = (&state.position, state.yaw);
     let prior_info = 1.0 / params.yaw_sigma.max(1e-6).powi(2);
-    let yaw_error = wrap_angle(imu_yaw - yaw);
+    let yaw_error = wrap_angle(state.imu_yaw - yaw);
     let mut out = Linearized {
         cost: 0.5 * yaw_error * yaw_error * prior_info,
         h: Matrix4::zeros(),
@@ -244,6 +277,13 @@ fn linearize(
     };
     out.h[(3, 3)] = prior_info;
     out.g[3] = yaw_error * prior_info;
+    if let Some(h) = state.height {
+        let info = 1.0 / (h.sigma_m * h.sigma_m);
+        let r = h.up_m - position.z;
+        out.cost += 0.5 * r * r * info;
+        out.h[(2, 2)] += info;
+        out.g[2] += r * info;
+    }
     for c in cands.iter().filter(|c| c.active) {
         if !residuals(c.obs, c.usable, frame, position, yaw, params, scratch) {
             out.cost = f64::INFINITY;
@@ -267,14 +307,13 @@ fn linearize(
 fn solve(
     cands: &[Candidate<'_, '_>],
     frame: &FrameCamera,
-    mut position: Point3<f64>,
-    mut yaw: f64,
-    imu_yaw: f64,
+    start: State,
     params: &LocalizerParams,
     scratch: &mut Vec<Residual>,
 ) -> Option<(Point3<f64>, f64, Matrix4<f64>)> {
+    let (mut position, mut yaw) = (start.position, start.yaw);
     let mut lambda = 1e-4;
-    let mut here = linearize(cands, frame, &position, yaw, imu_yaw, params, scratch);
+    let mut here = linearize(cands, frame, &start, params, scratch);
     if !here.cost.is_finite() {
         return None;
     }
@@ -299,9 +338,11 @@ fn solve(
             let there = linearize(
                 cands,
                 frame,
-                &candidate,
-                candidate_yaw,
-                imu_yaw,
+                &State {
+                    position: candidate,
+                    yaw: candidate_yaw,
+                    ..start
+                },
                 params,
                 scratch,
             );
@@ -415,6 +456,59 @@ mod tests {
                 "{} vs {}", fix.position_in_world, pose.position_in_world);
             prop_assert!(wrap_angle(fix.yaw - yaw).abs() < 1e-5);
         }
+    }
+
+    /// A banked turn past a near tower: its top is cut by the image, leaving
+    /// its foot row and axis column, two numbers for three unknowns. The
+    /// barometer's height is the third.
+    #[test]
+    fn one_cut_tower_and_the_barometer_give_a_fix() {
+        let camera = PinholeCamera::default_hd();
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: attitude(0.25, -0.3, 0.0),
+        };
+        let near = [tower("B1", 70.0, 5.0, 45.0)];
+        let cfw = camera.world_from_camera(&pose).inverse();
+        let foot = camera
+            .project(&(cfw * near[0].foot_in_world))
+            .expect("foot");
+        let top = camera
+            .project(&(cfw * near[0].top_in_world()))
+            .expect("top");
+        assert!(
+            top.y < 0.0 && foot.y < 700.0,
+            "the top is out of the image, the foot in: {top} {foot}"
+        );
+        let centre = 0.5 * (foot.x + top.x);
+        let obs = [Observation {
+            tower: &near[0],
+            bbox: PixelBox::new(centre - 10.0, 0.0, centre + 10.0, foot.y),
+            score: 0.9,
+            lens_stretch: 1.0,
+        }];
+        let params = LocalizerParams::default();
+        let prior = Some(Point3::new(3.0, -2.0, 30.0));
+        assert!(robust_lbl(&obs, &camera, &pose.attitude, prior, &params).is_none());
+        let height = Height {
+            up_m: 30.0,
+            sigma_m: 0.5,
+        };
+        let fix =
+            robust_lbl_with_height(&obs, &camera, &pose.attitude, prior, Some(height), &params)
+                .expect("a fix")
+                .fix;
+        assert!(
+            (fix.position_in_world - pose.position_in_world).norm() < 0.5,
+            "{}",
+            fix.position_in_world
+        );
+        // A height no one measured is no help.
+        let unknown = Height::unknown(30.0);
+        assert!(
+            robust_lbl_with_height(&obs, &camera, &pose.attitude, prior, Some(unknown), &params)
+                .is_none()
+        );
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The eval commands (demo build): the paper's tables reproduced on the
 //! simulator, and the detector's on rendered or real images.
 
+use anyhow::Context;
 use std::path::PathBuf;
 
 use clap::Subcommand;
@@ -87,7 +88,19 @@ pub enum EvalCommand {
         /// (default: the daemon's, `detector.edge_sigma_px`).
         #[arg(long)]
         edge_sigma_px: Option<f64>,
-        /// Folder for loc-bench.json.
+        /// Also fuse a velocity each frame, as a VIO or optical-flow
+        /// estimator would send it: the truth's plus noise of this 1-sigma
+        /// per axis, m/s.
+        #[arg(long)]
+        velocity_sigma: Option<f64>,
+        /// Fly without the simulated barometer (its height above take-off,
+        /// off by a 1 m bias and 0.3 m noise, 1-sigma).
+        #[arg(long)]
+        no_barometer: bool,
+        /// The per-frame estimator: `rays` (ours) or `paper`.
+        #[arg(long, default_value = "rays")]
+        method: String,
+        /// Folder for loc-bench.json and each flight's per-frame CSV.
         #[arg(long, default_value = "target/loc-bench")]
         out: PathBuf,
     },
@@ -112,8 +125,13 @@ impl EvalCommand {
                 seed,
                 oracle_only,
                 edge_sigma_px,
+                velocity_sigma,
+                no_barometer,
+                method,
                 out,
             } => {
+                let method = towernav_core::localizer::Method::from_name(method)
+                    .with_context(|| format!("--method {method:?}: not rays or paper"))?;
                 let section = detector.section();
                 let model = (!oracle_only).then(|| {
                     (
@@ -127,6 +145,9 @@ impl EvalCommand {
                     seed: *seed,
                     model,
                     edge_sigma_px: Some(edge_sigma_px.unwrap_or(section.edge_sigma_px)),
+                    velocity_sigma_mps: *velocity_sigma,
+                    no_barometer: *no_barometer,
+                    method,
                 };
                 towernav_eval::cmd::loc_bench::write_all(&options, out)
             }

@@ -337,6 +337,9 @@ pub struct PipelineSection {
     /// Take-off point [lat_deg, lon_deg, alt_m]: the mission datum and the
     /// filter's first guess. Needed for real sources; the simulator knows its own.
     pub takeoff: Option<[f64; 3]>,
+    /// With no tower in view the filter coasts, reporting while its
+    /// horizontal 1-sigma stays within this, metres.
+    pub max_coast_sigma_m: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -383,13 +386,15 @@ pub struct MavlinkSection {
     pub component_id: u8,
     /// The fix is 3-D only this long after a tower fix, seconds.
     pub fresh_fix_s: f64,
-    /// Coasting, the fix is 2-D this long after the last tower fix, then none.
+    /// Coasting, the fix is 2-D at most this long after the last tower fix,
+    /// then none; the filter's `pipeline.max_coast_sigma_m` usually ends
+    /// the coast sooner.
     pub coast_fix_s: f64,
 }
 
 impl MavlinkSection {
     /// What the core's link sends, and when.
-    pub fn link_config(&self, accel_sigma: f64) -> LinkConfig {
+    pub fn link_config(&self, accel_sigma: f64, coast_max_sigma_m: f64) -> LinkConfig {
         let every = |hz: f64| Duration::from_secs_f64(1.0 / hz);
         LinkConfig {
             system_id: self.system_id,
@@ -400,6 +405,7 @@ impl MavlinkSection {
                 .then(|| every(self.odometry_rate_hz)),
             fresh_fix: Duration::from_secs_f64(self.fresh_fix_s),
             coast_fix: Duration::from_secs_f64(self.coast_fix_s),
+            coast_max_sigma_m,
             accel_sigma,
         }
     }
@@ -504,6 +510,7 @@ impl Default for PipelineSection {
         Self {
             method: "rays".into(),
             filter: true,
+            max_coast_sigma_m: 10.0,
             takeoff: None,
         }
     }
@@ -524,7 +531,7 @@ impl Default for MavlinkSection {
             // (MAVROS, mavlink-router) on the same vehicle.
             component_id: 197,
             fresh_fix_s: 1.0,
-            coast_fix_s: 5.0,
+            coast_fix_s: 20.0,
         }
     }
 }
@@ -796,6 +803,13 @@ impl EdgeConfig {
                     "{:?} is not \"rays\" or \"paper\" (also \"seed\")",
                     self.pipeline.method
                 ),
+            );
+        }
+        let sigma = self.pipeline.max_coast_sigma_m;
+        if !(sigma > 0.0 && sigma <= 1000.0) {
+            return invalid(
+                "pipeline.max_coast_sigma_m",
+                format!("{sigma} is not in (0, 1000] metres"),
             );
         }
         Ok(())

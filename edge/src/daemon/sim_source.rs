@@ -32,6 +32,7 @@ pub struct SimSource {
     )>,
     mode: SimRender,
     max_frames: u64,
+    barometer: towernav_sim::Barometer,
 }
 
 impl SimSource {
@@ -41,7 +42,13 @@ impl SimSource {
             let buffers = renderer.buffers();
             (renderer, buffers, Conditions::default())
         });
+        let barometer = towernav_sim::Barometer::new(
+            towernav_sim::BarometerParams::default(),
+            scenario.seed,
+            scenario.start_in_world().z,
+        );
         Self {
+            barometer,
             frames: Box::new(scenario.frames_shared()),
             scenario,
             render,
@@ -83,6 +90,7 @@ impl FrameSource for SimSource {
             detections,
             attitude: Some(frame.imu_attitude),
             truth_in_world: Some(truth.pose.position_in_world),
+            barometric_height_m: Some(self.barometer.read(truth.pose.position_in_world.z)),
         }))
     }
 

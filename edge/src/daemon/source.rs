@@ -45,6 +45,8 @@ pub struct CapturedFrame {
     /// Where the camera truly was (the simulator's truth), for the operator's
     /// map; the pipeline never reads it.
     pub truth_in_world: Option<Point3<f64>>,
+    /// The barometer's height above take-off, metres, when the source knows it.
+    pub barometric_height_m: Option<f64>,
 }
 
 /// A source of frames, read on its own thread. `None`: no more frames.
@@ -139,6 +141,7 @@ impl FrameSource for ImageFolderSource {
                     detections: None,
                     attitude: None,
                     truth_in_world: None,
+                    barometric_height_m: None,
                 })
                 .map_err(|e| SourceError::Image {
                     seq,
@@ -370,6 +373,7 @@ impl FrameSource for FfmpegSource {
             detections: None,
             attitude: None,
             truth_in_world: None,
+            barometric_height_m: None,
         }))
     }
 

@@ -65,6 +65,7 @@ impl Worker {
                     attitude,
                     detections,
                     has_image: frame.image.is_some(),
+                    barometric_height_m: frame.barometric_height_m,
                 },
                 image: frame.image,
                 truth_in_world: frame.truth_in_world,
