@@ -7,7 +7,7 @@ use nalgebra::{Isometry3, Matrix3, Point2, Point3, Rotation3, UnitQuaternion, Ve
 use serde::{Deserialize, Serialize};
 
 use crate::distortion::Distortion;
-use crate::frames::Pose;
+use crate::frames::{Attitude, Pose};
 use crate::pixel_box::PixelBox;
 
 /// Pinhole intrinsics in pixels; the lens's distortion is [`Distortion`], beside them.
@@ -158,6 +158,30 @@ impl PinholeCamera {
         )
     }
 
+    /// How far the world's vertical leans at the image centre, radians
+    /// clockwise on screen, at `attitude` (mount included): a banked turn
+    /// leans the towers by about the roll. Turning the image clockwise by
+    /// minus this sets them upright. 0 when the camera looks straight up or down.
+    pub fn lean_of_vertical(&self, attitude: &Attitude) -> f64 {
+        let pose = Pose {
+            position_in_world: Point3::origin(),
+            attitude: *attitude,
+        };
+        let camera_from_world = self.world_from_camera(&pose).rotation.inverse();
+        // The vertical through the point the optical axis sees 10 m ahead.
+        let ahead = Point3::new(0.0, 0.0, 10.0);
+        let up = ahead + camera_from_world * Vector3::z();
+        let ideal = self.ideal();
+        match (ideal.project(&ahead), ideal.project(&up)) {
+            (Some(a), Some(b)) if (b - a).norm() > 1e-9 => {
+                // Upright, the top is straight above (-y on screen).
+                let d = b - a;
+                d.x.atan2(-d.y)
+            }
+            _ => 0.0,
+        }
+    }
+
     /// Pixel of a point in the camera frame, through the lens; `None` behind
     /// or on the image plane.
     pub fn project(&self, point_in_camera: &Point3<f64>) -> Option<Point2<f64>> {
@@ -270,7 +294,6 @@ impl PinholeCamera {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frames::Attitude;
     use proptest::prelude::*;
 
     #[test]
@@ -291,6 +314,39 @@ mod tests {
             (down + Vector3::z()).norm() < 1e-12,
             "image down must be world down"
         );
+    }
+
+    /// A tower standing in front of a banked camera: its image leans as
+    /// `lean_of_vertical` says (against the roll), measured from the
+    /// projections of its foot and top.
+    #[test]
+    fn the_vertical_leans_against_the_roll() {
+        let camera = PinholeCamera::default_hd();
+        assert!(camera.lean_of_vertical(&Attitude::level(0.7)).abs() < 1e-9);
+        for (roll, pitch) in [(0.3, 0.0), (-0.2, -0.1), (0.25, -0.3)] {
+            let attitude = Attitude {
+                roll,
+                pitch,
+                yaw: 0.4,
+            };
+            let pose = Pose {
+                position_in_world: Point3::new(0.0, 0.0, 30.0),
+                attitude,
+            };
+            let lean = camera.lean_of_vertical(&attitude);
+            // A vertical line where the optical axis meets the scene.
+            let cfw = camera.world_from_camera(&pose);
+            let hit = cfw * Point3::new(0.0, 0.0, 100.0);
+            let (foot, top) = (hit - Vector3::z() * 5.0, hit + Vector3::z() * 5.0);
+            let px = |p: Point3<f64>| camera.project(&(cfw.inverse() * p)).expect("in view");
+            let d = px(top) - px(foot);
+            let measured = d.x.atan2(-d.y);
+            assert!((lean - measured).abs() < 1e-6, "{lean} vs {measured}");
+            assert!(
+                lean * roll < 0.0,
+                "leans against the roll: {lean}, roll {roll}"
+            );
+        }
     }
 
     #[test]

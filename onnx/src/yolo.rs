@@ -159,12 +159,27 @@ impl YoloDetector {
 
     /// Towers in frame `seq`, in frame pixels.
     pub fn detect(&mut self, frame: &RgbImage, seq: u64) -> Result<Vec<Detection>, OnnxError> {
+        self.detect_turned(frame, seq, 0.0)
+    }
+
+    /// Towers in frame `seq`, in frame pixels, found in the frame turned
+    /// clockwise on screen by `rotation` radians (the camera's roll, to set
+    /// leaning towers upright; see [`Preprocessor::run_rotated`]).
+    pub fn detect_turned(
+        &mut self,
+        frame: &RgbImage,
+        seq: u64,
+        rotation: f64,
+    ) -> Result<Vec<Detection>, OnnxError> {
         let path = &self.info.path;
         let fail = |reason: String| OnnxError::Run {
             path: path.clone(),
             reason,
         };
-        let (lb, input) = self.pre.run(frame, seq).map_err(|e| fail(e.to_string()))?;
+        let (lb, input) = self
+            .pre
+            .run_rotated(frame, seq, rotation)
+            .map_err(|e| fail(e.to_string()))?;
         let shape = [
             1usize,
             3,

@@ -97,6 +97,10 @@ pub enum EvalCommand {
         /// off by a 1 m bias and 0.3 m noise, 1-sigma).
         #[arg(long)]
         no_barometer: bool,
+        /// Turn each frame by the IMU's roll before the detector, so towers
+        /// stand upright in what it sees.
+        #[arg(long)]
+        upright: bool,
         /// The per-frame estimator: `rays` (ours) or `paper`.
         #[arg(long, default_value = "rays")]
         method: String,
@@ -128,6 +132,7 @@ impl EvalCommand {
                 velocity_sigma,
                 no_barometer,
                 method,
+                upright,
                 out,
             } => {
                 let method = towernav_core::localizer::Method::from_name(method)
@@ -148,6 +153,7 @@ impl EvalCommand {
                     velocity_sigma_mps: *velocity_sigma,
                     no_barometer: *no_barometer,
                     method,
+                    upright: *upright,
                 };
                 towernav_eval::cmd::loc_bench::write_all(&options, out)
             }

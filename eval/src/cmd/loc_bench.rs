@@ -41,6 +41,9 @@ pub struct LocBenchOptions {
     pub no_barometer: bool,
     /// The per-frame estimator: ours, or the paper's for comparison.
     pub method: Method,
+    /// Turn each frame by the IMU's roll before the detector, so towers
+    /// stand upright in what it sees.
+    pub upright: bool,
 }
 
 /// How one flight is flown besides its detector.
@@ -54,6 +57,8 @@ pub struct FlyOptions {
     pub barometer: Option<BarometerParams>,
     /// The per-frame estimator (ours unless the paper's is asked for).
     pub method: Method,
+    /// Turn frames upright by the IMU's roll before the detector.
+    pub upright: bool,
 }
 
 /// One flight with one detector.
@@ -202,8 +207,13 @@ pub fn fly(
     for (truth, mut frame) in scenario.frames() {
         if let (Some(d), Some(r), Some(b)) = (detector.as_deref_mut(), &renderer, &mut buffers) {
             scenario.render_into(r, b, &truth, conditions);
+            let turn = if options.upright {
+                -scenario.camera.lean_of_vertical(&frame.imu_attitude)
+            } else {
+                0.0
+            };
             frame.detections = d
-                .detect(&b.image, frame.seq)
+                .detect_turned(&b.image, frame.seq, turn)
                 .with_context(|| format!("world {}, frame {}", scenario.seed, frame.seq))?;
             for t in truth
                 .boxes
@@ -372,6 +382,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
             velocity_sigma_mps: options.velocity_sigma_mps,
             barometer,
             method: options.method,
+            upright: false,
         };
         rows.push(fly(scenario, conditions, None, &oracle, "oracle", &tick)?);
         if let Some(d) = detector.as_mut() {
@@ -385,6 +396,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
                 method: options.method,
+                upright: options.upright,
             };
             rows.push(fly(scenario, conditions, Some(d), &yolo, &name, &tick)?);
         }
