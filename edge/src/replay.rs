@@ -177,6 +177,14 @@ pub fn replay(
         "replaying"
     );
 
+    // The barometer's climb since the first frame: the start is where the
+    // first frame was taken (the pipeline's origin), so its reading then is the zero.
+    let baro_zero = log.barometer_at(first_s + offset_s);
+    if baro_zero.is_none() {
+        tracing::info!(
+            "the log has no barometer at the first frame: the paper's method reports its height as unknown"
+        );
+    }
     let started = Instant::now();
     let mut run = ReplayRun {
         frames: 0,
@@ -214,6 +222,9 @@ pub fn replay(
             }
         };
         run.detect_seconds += t0.elapsed().as_secs_f64();
+        if let (Some(zero), Some(now)) = (baro_zero, log.barometer_at(log_time_s)) {
+            pipeline.barometric_height(frame.time_s, now - zero);
+        }
         let out = pipeline.process(&DetectionFrame {
             seq: frame.seq,
             time_s: frame.time_s,

@@ -54,7 +54,11 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
             });
         }
     }
-    Ok(FlightLog { attitude, gnss })
+    Ok(FlightLog {
+        attitude,
+        gnss,
+        barometer: Vec::new(),
+    })
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@
 use ardupilot_binlog::{Entry, Reader};
 use towernav_geometry::Attitude;
 
-use crate::samples::{AttitudeSample, GnssSample};
+use crate::samples::{AttitudeSample, BaroSample, GnssSample};
 use crate::{FlightLog, LogError};
 
 /// GPS `Status` of a 3-D fix or better.
@@ -22,6 +22,7 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
     }
     let mut attitude = Vec::new();
     let mut gnss = Vec::new();
+    let mut barometer = Vec::new();
     let mut bad = 0usize;
     let mut last_time_s: Option<f64> = None;
     for (index, entry) in Reader::new(bytes).enumerate() {
@@ -62,10 +63,20 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
                     gnss.push(g);
                 }
             }
+            // The first barometer; `Alt` is metres above its zero at boot.
+            "BARO" if instance(&entry) == 0 => {
+                if let Some(altitude_m) = entry.get_f64("Alt").filter(|a| a.is_finite()) {
+                    barometer.push(BaroSample { time_s, altitude_m });
+                }
+            }
             _ => {}
         }
     }
-    Ok(FlightLog { attitude, gnss })
+    Ok(FlightLog {
+        attitude,
+        gnss,
+        barometer,
+    })
 }
 
 /// Whether the message's first field is boot time: `TimeUS`, or `TimeMS`

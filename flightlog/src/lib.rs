@@ -1,5 +1,5 @@
 //! What a flight log says about the UAV: its attitude and, where present,
-//! its GNSS fixes, on the autopilot's clock (seconds since boot), from
+//! its GNSS fixes and barometric altitude, on the autopilot's clock (seconds since boot), from
 //! ArduPilot DataFlash (`.bin`), MAVLink telemetry logs (`.tlog`), PX4 ULog
 //! (`.ulg`) and the project's CSV. Attitude between samples is slerped.
 //!
@@ -15,7 +15,7 @@ mod ulog;
 use std::path::Path;
 
 pub use error::LogError;
-pub use samples::{AttitudeSample, GnssSample, MAX_GNSS_GAP_S};
+pub use samples::{AttitudeSample, BaroSample, GnssSample, MAX_GNSS_GAP_S};
 
 use towernav_geometry::Attitude;
 
@@ -41,11 +41,14 @@ impl LogFormat {
     }
 }
 
-/// A flight's attitude and GNSS, each sorted by time.
+/// A flight's attitude, GNSS and barometer, each sorted by time.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlightLog {
     pub attitude: Vec<AttitudeSample>,
     pub gnss: Vec<GnssSample>,
+    /// ArduPilot's `BARO` `Alt`, PX4's `vehicle_air_data` `baro_alt_meter`,
+    /// a tlog's ALTITUDE `altitude_monotonic` (else VFR_HUD `alt`); none from CSV.
+    pub barometer: Vec<BaroSample>,
 }
 
 impl FlightLog {
@@ -72,6 +75,7 @@ impl FlightLog {
         };
         samples::tidy(&mut log.attitude, |s| s.time_s);
         samples::tidy(&mut log.gnss, |s| s.time_s);
+        samples::tidy(&mut log.barometer, |s| s.time_s);
         if log.attitude.is_empty() {
             return Err(LogError::bare(format!(
                 "no attitude in it (looked for {})",
@@ -103,6 +107,12 @@ impl FlightLog {
     /// outside the log's fixes or across a gap in them.
     pub fn gnss_at(&self, time_s: f64) -> Option<GnssSample> {
         samples::gnss_at(&self.gnss, time_s)
+    }
+
+    /// The barometer's altitude at `time_s` (on its own zero: compare two
+    /// readings, not one with a map); `None` outside its readings or across a gap.
+    pub fn barometer_at(&self, time_s: f64) -> Option<f64> {
+        samples::baro_at(&self.barometer, time_s)
     }
 
     /// Refuses frames from `first_s` to `last_s` (log clock) that the log

@@ -219,3 +219,58 @@ fn cut_and_foreign_logs_are_refused_naming_the_file() {
         assert!(log.attitude.len() < 3978 && log.attitude.len() > 1000);
     }
 }
+
+/// The barometer against pymavlink's `DFReader_binary` 2.4.50 (`BARO`,
+/// instance 0, `Alt`, the first reading at each time) and pyulog 1.3.0
+/// (`vehicle_air_data` `baro_alt_meter`; `sample.ulg`'s older
+/// `sensor_combined` marks every reading invalid, INT32_MAX): the number of
+/// readings, and the first, middle and last (time s, altitude m).
+#[test]
+fn barometers_read_as_pymavlink_and_pyulog_read_them() {
+    type Case = (&'static str, usize, [(f64, f64); 3]);
+    const CASES: [Case; 5] = [
+        (
+            "ardupilot/copter_83.bin",
+            787,
+            [(8.869, -0.0324), (88.265, 0.7602), (127.567, 0.0568)],
+        ),
+        (
+            "ardupilot/copter_loiter_rtl.bin",
+            2357,
+            [(20.664, 0.0439), (160.789, 2.8740), (278.589, 0.4977)],
+        ),
+        ("ardupilot/plane_329.bin", 0, [(0.0, 0.0); 3]),
+        (
+            "px4/sample_log_small.ulg",
+            120,
+            [
+                (20.328449, 86.1502),
+                (23.64688, 86.0471),
+                (26.813814, 86.1925),
+            ],
+        ),
+        ("px4/sample.ulg", 0, [(0.0, 0.0); 3]),
+    ];
+    for (name, count, picks) in CASES {
+        let Some(path) = shared_log(name) else {
+            continue;
+        };
+        let log = FlightLog::read(&path).expect("reads");
+        let baro = &log.barometer;
+        assert_eq!(baro.len(), count, "{name}");
+        if count == 0 {
+            assert_eq!(log.barometer_at(50.0), None, "{name}");
+            continue;
+        }
+        for (i, (t, alt)) in [0, count / 2, count - 1].into_iter().zip(picks) {
+            assert!(
+                close(baro[i].time_s, t, 1e-3) && close(baro[i].altitude_m, alt, 1e-3),
+                "{name} reading {i}: {:?} against {t}, {alt}",
+                baro[i]
+            );
+        }
+        let (t, alt) = picks[1];
+        let between = log.barometer_at(t).expect("inside");
+        assert!(close(between, alt, 1e-3), "{name}: {between}");
+    }
+}

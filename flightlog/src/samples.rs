@@ -30,6 +30,31 @@ impl GnssSample {
     }
 }
 
+/// The barometer's altitude at a time on the log's clock, metres on the
+/// autopilot's own zero (ArduPilot's is the ground at boot, PX4's the
+/// standard atmosphere's sea level): only its changes mean anything.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BaroSample {
+    pub time_s: f64,
+    pub altitude_m: f64,
+}
+
+/// The barometer at `time_s`, linear between the readings around it (at
+/// most [`MAX_GNSS_GAP_S`] apart); `None` outside the log or across a gap.
+pub(crate) fn baro_at(samples: &[BaroSample], time_s: f64) -> Option<f64> {
+    let i = samples.partition_point(|b| b.time_s < time_s);
+    let after = samples.get(i)?;
+    if after.time_s == time_s {
+        return Some(after.altitude_m);
+    }
+    let before = samples.get(i.checked_sub(1)?)?;
+    if after.time_s - before.time_s > MAX_GNSS_GAP_S {
+        return None;
+    }
+    let w = (time_s - before.time_s) / (after.time_s - before.time_s);
+    Some(before.altitude_m + (after.altitude_m - before.altitude_m) * w)
+}
+
 /// Fixes further apart than this are a gap, not a track to interpolate.
 pub const MAX_GNSS_GAP_S: f64 = 1.0;
 

@@ -9,7 +9,7 @@ use mavlink::MavlinkReader;
 use mavlink::dialects::common::{GpsFixType, MavMessage};
 use towernav_geometry::Attitude;
 
-use crate::samples::{AttitudeSample, GnssSample};
+use crate::samples::{AttitudeSample, BaroSample, GnssSample};
 use crate::{FlightLog, LogError};
 
 const STAMP: usize = 8;
@@ -30,6 +30,9 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
     let mut global = Vec::new();
     let mut raw: Vec<(u64, GnssSample)> = Vec::new();
     let mut clock_offsets_us: Vec<i64> = Vec::new();
+    // ALTITUDE's barometric climb, and VFR_HUD's altitude stamped by the
+    // latest ATTITUDE's boot time (VFR_HUD has no time of its own).
+    let (mut altitude, mut hud) = (Vec::new(), Vec::new());
     let mut vehicle: Option<u32> = None;
     let mut at = 0usize;
     let mut records = 0usize;
@@ -101,9 +104,35 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
                     },
                 ));
             }
+            MavMessage::ALTITUDE(a) if vehicle.is_none_or(|v| v == header.system_id) => {
+                // `time_usec` is boot time or UNIX time: a UNIX time
+                // (over 11 days) takes the latest ATTITUDE's boot time.
+                let time_s = if a.time_usec < 1_000_000_000_000 {
+                    Some(a.time_usec as f64 / 1e6)
+                } else {
+                    attitude.last().map(|s| s.time_s)
+                };
+                let altitude_m = f64::from(a.altitude_monotonic);
+                if let Some(time_s) = time_s
+                    && altitude_m.is_finite()
+                {
+                    altitude.push(BaroSample { time_s, altitude_m });
+                }
+            }
+            MavMessage::VFR_HUD(h) if vehicle.is_none_or(|v| v == header.system_id) => {
+                if let Some(last) = attitude.last()
+                    && h.alt.is_finite()
+                {
+                    hud.push(BaroSample {
+                        time_s: last.time_s,
+                        altitude_m: f64::from(h.alt),
+                    });
+                }
+            }
             _ => {}
         }
     }
+    let barometer = if altitude.is_empty() { hud } else { altitude };
     // Receive time less boot time: the smallest is the least delayed
     // message's, the best estimate of the two clocks' offset.
     let gnss = match clock_offsets_us.iter().min() {
@@ -116,7 +145,11 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
             .collect(),
         _ => global,
     };
-    Ok(FlightLog { attitude, gnss })
+    Ok(FlightLog {
+        attitude,
+        gnss,
+        barometer,
+    })
 }
 
 fn truncated(at: usize, records: usize) -> LogError {

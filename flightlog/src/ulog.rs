@@ -7,7 +7,7 @@ use yule_log::builder::ULogParserBuilder;
 use yule_log::model::inst::{FieldValue, Format};
 use yule_log::model::msg::UlogMessage;
 
-use crate::samples::{AttitudeSample, GnssSample, attitude_of_ned_quaternion};
+use crate::samples::{AttitudeSample, BaroSample, GnssSample, attitude_of_ned_quaternion};
 use crate::{FlightLog, LogError};
 
 pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
@@ -17,6 +17,7 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
     let mut attitude = Vec::new();
     let mut receiver = Vec::new();
     let mut fused = Vec::new();
+    let mut barometer = Vec::new();
     for (index, message) in parser.enumerate() {
         let message = message.map_err(|e| {
             LogError::bare(if index == 0 {
@@ -66,11 +67,35 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
                     });
                 }
             }
+            "vehicle_air_data" => {
+                if let Some(altitude_m) = scalar(data, "baro_alt_meter").filter(|a| a.is_finite()) {
+                    barometer.push(BaroSample { time_s, altitude_m });
+                }
+            }
+            // Older PX4 logs carry the barometer in `sensor_combined`, its
+            // time relative to the message's; INT32_MAX marks none.
+            "sensor_combined" => {
+                if let (Some(relative), Some(altitude_m)) = (
+                    scalar(data, "baro_timestamp_relative"),
+                    scalar(data, "baro_alt_meter"),
+                ) && relative != f64::from(i32::MAX)
+                    && altitude_m.is_finite()
+                {
+                    barometer.push(BaroSample {
+                        time_s: time_s + relative / 1e6,
+                        altitude_m,
+                    });
+                }
+            }
             _ => {}
         }
     }
     let gnss = if receiver.is_empty() { fused } else { receiver };
-    Ok(FlightLog { attitude, gnss })
+    Ok(FlightLog {
+        attitude,
+        gnss,
+        barometer,
+    })
 }
 
 /// Older messages: `lat`/`lon` in 1e-7 degrees and `alt` in millimetres;

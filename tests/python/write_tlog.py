@@ -2,8 +2,9 @@
 each record is the receive time (big-endian u64 microseconds since the
 epoch) and one MAVLink 2 frame. Usage: write_tlog.py OUT.tlog
 
-The vehicle (system 1) sends ATTITUDE at 50 Hz, GLOBAL_POSITION_INT at
-10 Hz and GPS_RAW_INT (3-D fix, its own stamp in Unix time) at 5 Hz, each
+The vehicle (system 1) sends ATTITUDE at 50 Hz, GLOBAL_POSITION_INT and
+ALTITUDE (stamped in boot time, altitude_monotonic climbing 5 cm a
+message) at 10 Hz and GPS_RAW_INT (3-D fix, its own stamp in Unix time) at 5 Hz, each
 received 20 ms after it was sent; a ground station (system 255) sends
 HEARTBEAT and a second vehicle (system 2) sends ATTITUDE of its own.
 """
@@ -35,6 +36,10 @@ def main(path):
             if i % 5 == 0:
                 put(1, boot_ms, mavlink.MAVLink_global_position_int_message(
                     boot_ms, int(47.1e7) + i * 10, int(8.5e7) + i * 5, 512_000 + i, 30_000, 0, 0, 0, 0))
+                put(1, boot_ms, mavlink.MAVLink_altitude_message(
+                    boot_ms * 1000, 100.0 + 0.01 * i, 512.0, 30.0, 30.0, 30.0, float("nan")))
+                put(2, boot_ms, mavlink.MAVLink_altitude_message(
+                    boot_ms * 1000, -50.0, 0.0, 0.0, 0.0, 0.0, 0.0))
             if i % 10 == 0:
                 put(1, boot_ms, mavlink.MAVLink_gps_raw_int_message(
                     EPOCH_US + boot_ms * 1000, 3, int(47.1e7) + i * 10, int(8.5e7) + i * 5,

@@ -46,6 +46,11 @@ fn a_tlog_written_by_pymavlink_reads_the_vehicle_s_attitude_and_fixes() {
         assert!((g.alt_msl_m - (512.0 + 0.01 * i as f64)).abs() < 1e-9);
     }
 
+    // ALTITUDE's barometric climb, system 1's only, on the boot clock.
+    assert_eq!(log.barometer.len(), 100);
+    let climb = log.barometer_at(15.05).expect("inside");
+    assert!((climb - (100.0 + 0.01 * 252.5)).abs() < 1e-4, "{climb}");
+
     // Cut in the middle of a record: refused, naming the file and where.
     let bytes = std::fs::read(&path).expect("read");
     let cut = dir.path().join("cut.tlog");

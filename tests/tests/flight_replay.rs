@@ -407,6 +407,11 @@ fn pymavlink_reads_the_simulator_s_tlog_as_the_flight_it_flew() {
             .as_u64()
             .is_some_and(|n| n >= 19)
     );
+    // The barometer with every fix.
+    assert_eq!(
+        read["counts"]["ALTITUDE"],
+        read["counts"]["GLOBAL_POSITION_INT"]
+    );
 
     // Attitude as flown (the IMU's, within its noise of the truth) on a clock
     // 12.5 s ahead of the frames'; yaw clockwise from north.

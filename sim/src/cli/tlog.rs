@@ -9,13 +9,14 @@ use std::path::Path;
 
 use anyhow::Context;
 use mavlink::dialects::common::{
-    ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag,
-    MavState, MavType,
+    ALTITUDE_DATA, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MavAutopilot,
+    MavMessage, MavModeFlag, MavState, MavType,
 };
 use mavlink::{MavHeader, write_v2_msg};
 use nalgebra::Point3;
 use towernav_geometry::{Attitude, Datum, geoid_height_m};
 use towernav_sim::gnss::{GnssNoise, GnssParams};
+use towernav_sim::{Barometer, BarometerParams};
 
 /// Seconds the autopilot has been up when the camera's first frame is taken.
 pub const BOOT_LEAD_S: f64 = 12.5;
@@ -34,11 +35,13 @@ pub struct LogRow {
 }
 
 /// Writes ATTITUDE for every row, GLOBAL_POSITION_INT at [`GNSS_RATE_HZ`]
-/// with GNSS noise, and a HEARTBEAT a second.
+/// with GNSS noise, ALTITUDE at the same rate with a barometer's
+/// (`altitude_monotonic`, zero at the datum's height), and a HEARTBEAT a second.
 pub struct TlogWriter {
     out: std::io::BufWriter<std::fs::File>,
     datum: Datum,
     gnss: GnssNoise,
+    barometer: Barometer,
     sequence: u8,
     next_fix_s: f64,
     next_heartbeat_s: f64,
@@ -53,6 +56,7 @@ impl TlogWriter {
             out: std::io::BufWriter::new(file),
             datum,
             gnss: GnssNoise::new(gnss, seed),
+            barometer: Barometer::new(BarometerParams::default(), seed, 0.0),
             sequence: 0,
             next_fix_s: 0.0,
             next_heartbeat_s: 0.0,
@@ -83,6 +87,19 @@ impl TlogWriter {
             let fix = self.gnss.fix(row.time_s, &row.position_in_world);
             let message = self.position(boot_ms, row, &fix);
             self.record(boot_s, &MavMessage::GLOBAL_POSITION_INT(message))?;
+            let altitude = self.barometer.read(row.position_in_world.z) as f32;
+            self.record(
+                boot_s,
+                &MavMessage::ALTITUDE(ALTITUDE_DATA {
+                    time_usec: u64::from(boot_ms) * 1000,
+                    altitude_monotonic: altitude,
+                    altitude_amsl: f32::NAN,
+                    altitude_local: altitude,
+                    altitude_relative: altitude,
+                    altitude_terrain: f32::NAN,
+                    bottom_clearance: f32::NAN,
+                }),
+            )?;
         }
         self.previous = Some((row.time_s, row.position_in_world));
         Ok(())
