@@ -75,7 +75,7 @@ impl Default for LinkConfig {
             odometry_every: None,
             fresh_fix: Duration::from_secs(1),
             coast_fix: Duration::from_secs(20),
-            coast_max_sigma_m: 10.0,
+            coast_max_sigma_m: 5.0,
             accel_sigma: 1.5,
         }
     }

@@ -25,8 +25,9 @@ pub struct FilterParams {
     pub gate_chi2: f64,
     pub max_coast_s: f64,
     /// Estimates are reported only while the horizontal position's 1-sigma
-    /// (the major axis of its ellipse) is at most this, metres; the
-    /// prediction lives on (for identity) until `max_coast_s`.
+    /// (the major axis of its ellipse) is at most this, metres (5: about a
+    /// consumer GNSS receiver's spread); the prediction lives on (for
+    /// identity) until `max_coast_s`.
     pub max_report_sigma_m: f64,
     /// Chi-square gate on a 3-D velocity measurement's innovation (99.9 %).
     pub velocity_gate_chi2: f64,
@@ -63,7 +64,7 @@ impl Default for FilterParams {
             accel_sigma_v: 0.5,
             gate_chi2: 16.27,
             max_coast_s: 20.0,
-            max_report_sigma_m: 10.0,
+            max_report_sigma_m: 5.0,
             velocity_gate_chi2: 16.27,
             velocity_tau_s: 8.0,
             restart_after_rejections: 15,
@@ -223,15 +224,15 @@ impl PoseFilter {
         let Some(s) = &self.state else {
             return (None, verdict);
         };
-        if horizontal_sigma(&s.p.fixed_view::<2, 2>(0, 0).into_owned())
-            > self.params.max_report_sigma_m
-        {
-            return (None, verdict);
-        }
         let mut covariance = Matrix4::zeros();
         covariance.fixed_view_mut::<3, 3>(0, 0).copy_from(
             &(s.p.fixed_view::<3, 3>(0, 0) + s.fix_covariance * self.params.persistent_share),
         );
+        if horizontal_sigma(&covariance.fixed_view::<2, 2>(0, 0).into_owned())
+            > self.params.max_report_sigma_m
+        {
+            return (None, verdict);
+        }
         let (yaw, yaw_var) = match fix {
             Some(f) if verdict != FixVerdict::Rejected => (f.yaw, f.covariance[(3, 3)]),
             _ => (imu_yaw, imu_yaw_variance),

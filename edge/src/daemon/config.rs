@@ -338,7 +338,9 @@ pub struct PipelineSection {
     /// filter's first guess. Needed for real sources; the simulator knows its own.
     pub takeoff: Option<[f64; 3]>,
     /// With no tower in view the filter coasts, reporting while its
-    /// horizontal 1-sigma stays within this, metres.
+    /// horizontal 1-sigma stays within this, metres (5: about a consumer
+    /// GNSS receiver's spread; beyond it the autopilot's own dead reckoning
+    /// is as good).
     pub max_coast_sigma_m: f64,
 }
 
@@ -510,7 +512,7 @@ impl Default for PipelineSection {
         Self {
             method: "rays".into(),
             filter: true,
-            max_coast_sigma_m: 10.0,
+            max_coast_sigma_m: 5.0,
             takeoff: None,
         }
     }
