@@ -228,8 +228,12 @@ impl PoseFilter {
         covariance.fixed_view_mut::<3, 3>(0, 0).copy_from(
             &(s.p.fixed_view::<3, 3>(0, 0) + s.fix_covariance * self.params.persistent_share),
         );
-        if horizontal_sigma(&covariance.fixed_view::<2, 2>(0, 0).into_owned())
-            > self.params.max_report_sigma_m
+        // A fused fix is always told, however uncertain (its covariance says
+        // so); the bound ends a coast.
+        let fused = matches!(verdict, FixVerdict::Accepted | FixVerdict::Restarted);
+        if !fused
+            && horizontal_sigma(&covariance.fixed_view::<2, 2>(0, 0).into_owned())
+                > self.params.max_report_sigma_m
         {
             return (None, verdict);
         }
