@@ -30,6 +30,7 @@ use towernav_geometry::{Attitude, Datum, Geodetic, GeoidCache};
 use towernav_protocol::{EdgeState, Health, PoseEstimate};
 
 use crate::autopilot::{global_position, gps_input, heartbeat, odometry, status_text};
+use crate::filter::horizontal_sigma;
 
 /// How often HEARTBEAT goes out (MAVLink's microservices expect 1 Hz).
 pub const HEARTBEAT_EVERY: Duration = Duration::from_secs(1);
@@ -306,8 +307,11 @@ impl AutopilotLink {
         let estimating = self.latest.is_some()
             && matches!(self.state, EdgeState::Localized | EdgeState::Coasting);
         let worth_little = || {
-            self.predicted(now)
-                .is_none_or(|p| horizontal_sigma_m(&p) > self.config.coast_max_sigma_m)
+            self.predicted(now).is_none_or(|p| {
+                let c = &p.covariance;
+                let en = nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
+                horizontal_sigma(&en) > self.config.coast_max_sigma_m
+            })
         };
         match since_fix {
             Some(age) if estimating && age <= self.config.fresh_fix => {
@@ -406,15 +410,6 @@ impl AutopilotLink {
         self.out
             .push_back(MavMessage::STATUSTEXT(status_text(severity, text)));
     }
-}
-
-/// The horizontal 1-sigma along the major axis of the pose's ellipse.
-fn horizontal_sigma_m(pose: &PoseEstimate) -> f64 {
-    let c = &pose.covariance;
-    let (a, b, cross) = (c[0][0], c[1][1], c[0][1]);
-    (0.5 * (a + b) + (0.25 * (a - b).powi(2) + cross * cross).sqrt())
-        .max(0.0)
-        .sqrt()
 }
 
 /// The period after `due`, or half a period from `now` when the timer ran

@@ -330,24 +330,7 @@ impl PoseFilter {
         let Some(s) = &mut self.state else {
             return false;
         };
-        let mut h = SMatrix::<f64, 3, 6>::zeros();
-        for i in 0..3 {
-            h[(i, i + 3)] = 1.0;
-        }
-        let innovation = velocity_in_world - s.x.fixed_rows::<3>(3);
-        let cov = h * s.p * h.transpose() + covariance;
-        let Some(cov_inv) = cov.try_inverse() else {
-            return false;
-        };
-        let nis = (innovation.transpose() * cov_inv * innovation)[(0, 0)];
-        if !nis.is_finite() || nis > gate {
-            return false;
-        }
-        let gain = s.p * h.transpose() * cov_inv;
-        s.x += gain * innovation;
-        let i_kh = Matrix6::identity() - gain * h;
-        s.p = i_kh * s.p * i_kh.transpose() + gain * covariance * gain.transpose();
-        true
+        s.fuse_block(3, velocity_in_world, covariance, gate)
     }
 
     /// Fuse a fix's position; `false` if its innovation fails the gate.
@@ -357,33 +340,44 @@ impl PoseFilter {
         let Some(s) = &mut self.state else {
             return false;
         };
-        let mut h = SMatrix::<f64, 3, 6>::zeros();
-        for i in 0..3 {
-            h[(i, i)] = 1.0;
-        }
         let r: Matrix3<f64> = fix.covariance.fixed_view::<3, 3>(0, 0).into_owned() * scale;
-        let innovation = fix.position_in_world.coords - s.x.fixed_rows::<3>(0);
-        let cov = h * s.p * h.transpose() + r;
-        let Some(cov_inv) = cov.try_inverse() else {
-            return false;
-        };
-        let nis = (innovation.transpose() * cov_inv * innovation)[(0, 0)];
-        if !nis.is_finite() || nis > gate {
+        if !s.fuse_block(0, &fix.position_in_world.coords, &r, gate) {
             return false;
         }
-        let gain = s.p * h.transpose() * cov_inv;
-        s.x += gain * innovation;
-        // Joseph form keeps P symmetric and positive.
-        let i_kh = Matrix6::identity() - gain * h;
-        s.p = i_kh * s.p * i_kh.transpose() + gain * r * gain.transpose();
         s.last_update_s = s.time_s;
         s.fix_covariance = fix.covariance.fixed_view::<3, 3>(0, 0).into_owned();
         true
     }
 }
 
-/// The horizontal position's 1-sigma along its ellipse's major axis.
-fn horizontal_sigma(p: &nalgebra::Matrix2<f64>) -> f64 {
+impl State {
+    /// Fuses a direct measurement `z` (covariance `r`) of the three states
+    /// from `first` (0: position, 3: velocity); `false`, unchanged, if its
+    /// innovation fails the chi-square `gate`.
+    fn fuse_block(&mut self, first: usize, z: &Vector3<f64>, r: &Matrix3<f64>, gate: f64) -> bool {
+        let mut h = SMatrix::<f64, 3, 6>::zeros();
+        for i in 0..3 {
+            h[(i, first + i)] = 1.0;
+        }
+        let innovation = z - h * self.x;
+        let Some(cov_inv) = (h * self.p * h.transpose() + r).try_inverse() else {
+            return false;
+        };
+        let nis = (innovation.transpose() * cov_inv * innovation)[(0, 0)];
+        if !nis.is_finite() || nis > gate {
+            return false;
+        }
+        let gain = self.p * h.transpose() * cov_inv;
+        self.x += gain * innovation;
+        // Joseph form keeps P symmetric and positive.
+        let i_kh = Matrix6::identity() - gain * h;
+        self.p = i_kh * self.p * i_kh.transpose() + gain * r * gain.transpose();
+        true
+    }
+}
+
+/// A horizontal covariance's 1-sigma along its ellipse's major axis.
+pub fn horizontal_sigma(p: &nalgebra::Matrix2<f64>) -> f64 {
     let (a, b, c) = (p[(0, 0)], p[(1, 1)], p[(0, 1)]);
     let major = 0.5 * (a + b) + (0.25 * (a - b).powi(2) + c * c).sqrt();
     major.max(0.0).sqrt()

@@ -191,6 +191,10 @@ pub fn fly(
     }
     config.method = options.method;
     let mut velocity_noise = ChaCha8Rng::seed_from_u64(scenario.seed ^ 0x005e_ed0f_u64);
+    let velocity_error = options
+        .velocity_sigma_mps
+        .map(|sigma| rand_distr::Normal::new(0.0, sigma).map(|n| (sigma, n)))
+        .transpose()?;
     let mut barometer = options
         .barometer
         .map(|b| Barometer::new(b, scenario.seed, scenario.start_in_world().z));
@@ -228,10 +232,9 @@ pub fn fly(
         }
         let detections = frame.detections.len();
         let here = truth.pose.position_in_world;
-        if let (Some(sigma), Some((t0, p0))) = (options.velocity_sigma_mps, previous_truth)
+        if let (Some((sigma, noise)), Some((t0, p0))) = (velocity_error, previous_truth)
             && frame.time_s > t0
         {
-            let noise = rand_distr::Normal::new(0.0, sigma)?;
             let v = (here - p0) / (frame.time_s - t0)
                 + nalgebra::Vector3::from_fn(|_, _| noise.sample(&mut velocity_noise));
             let c = nalgebra::Matrix3::identity() * sigma * sigma;
@@ -287,17 +290,16 @@ pub fn fly(
             row.fix_up_sigma_m = Some(f.covariance[(2, 2)].max(0.0).sqrt());
         }
         if let Some(e) = &out.estimate {
-            let p = truth.pose.position_in_world;
-            let d = Vector2::new(e.position_in_world.x - p.x, e.position_in_world.y - p.y);
-            let c = e.covariance.fixed_view::<2, 2>(0, 0).into_owned();
-            let nees = c.try_inverse().map(|ci| (d.transpose() * ci * d)[(0, 0)]);
+            let (error, nees, sigma) = horizontal_error(
+                &e.position_in_world,
+                &e.covariance,
+                &truth.pose.position_in_world,
+            );
             if nees.is_some_and(|n| n <= TWO_SIGMA_CHI2) {
                 inside += 1;
             }
-            errors.push(d.norm());
-            row.error_m = Some(d.norm());
-            row.nees = nees;
-            row.sigma_m = Some(c.symmetric_eigenvalues().max().max(0.0).sqrt());
+            errors.push(error);
+            (row.error_m, row.nees, row.sigma_m) = (Some(error), nees, Some(sigma));
             row.coast_s = Some(e.coast_s);
         }
         per_frame.push(row);
@@ -334,8 +336,7 @@ fn horizontal_error(
     let d = Vector2::new(position.x - truth.x, position.y - truth.y);
     let c = covariance.fixed_view::<2, 2>(0, 0).into_owned();
     let nees = c.try_inverse().map(|ci| (d.transpose() * ci * d)[(0, 0)]);
-    let sigma = c.symmetric_eigenvalues().max().max(0.0).sqrt();
-    (d.norm(), nees, sigma)
+    (d.norm(), nees, towernav_core::filter::horizontal_sigma(&c))
 }
 
 /// Bound tracks whose tower is not the one truth has under their box.
