@@ -8,11 +8,10 @@
 
 use std::collections::HashMap;
 
-use towernav_geometry::{PinholeCamera, Pose};
+use towernav_geometry::{Cut, PinholeCamera, Pose};
 
 use crate::assignment::max_score_matching;
 use crate::landmarks::LandmarkMap;
-use crate::localizer::EDGE_MARGIN_PX;
 use crate::tracker::TrackOutput;
 
 /// What a frame's bindings are judged against: where the pipeline thinks the
@@ -158,9 +157,8 @@ impl Identity {
         let b = &track.bbox;
         // An edge at the image border is the border's, not the tower's: a box
         // cut at a side says nothing of the centre, one cut at top or bottom nothing of size.
-        let m = EDGE_MARGIN_PX;
-        let cut_side = b.left <= m || b.right >= image.0 - m;
-        let cut_end = b.top <= m || b.bottom >= image.1 - m;
+        let cut = Cut::in_image(b, image.0, image.1);
+        let (cut_side, cut_end) = (cut.side(), cut.end());
         if cut_side && cut_end {
             // Neither where it is nor how big: no evidence either way.
             return None;
@@ -178,7 +176,7 @@ impl Identity {
         };
         // The foot's row tells range apart from height: a taller tower farther
         // along the same bearing can have the same box height, never the same foot.
-        let foot = if trusted && b.bottom < image.1 - m {
+        let foot = if trusted && !cut.bottom {
             (b.bottom - foot_v) / (bearing_sigma + 0.05 * b.height())
         } else {
             0.0

@@ -2,8 +2,9 @@
 //!
 //! A real lens is undone at the door: each detector box is mapped into the
 //! ideal camera's image (its top, foot and sides undistorted), so the
-//! tracker, identity and localizers work in pinhole geometry, and tracks go
-//! back out on the real image. Positions inside are the camera's centre;
+//! tracker and identity work in pinhole geometry, and tracks go back out on
+//! the real image. Ours localizer gets each bound box in both images: it
+//! reads the rows in the real one, through the lens model. Positions inside are the camera's centre;
 //! what goes out is the body's, the mount's lever arm taken off.
 
 use nalgebra::{Point3, Vector3};
@@ -414,8 +415,8 @@ impl Pipeline {
                 Some(Observation {
                     tower: self.map.towers.get(b.tower)?,
                     bbox: b.bbox,
+                    raw: self.view.to_real(&b.bbox),
                     score: b.score,
-                    lens_stretch: self.view.stretch(&b.bbox),
                 })
             })
             .collect();
@@ -446,7 +447,7 @@ impl Pipeline {
             Method::Paper => paper(),
             Method::Rays => robust_lbl_with_height(
                 &observations,
-                &self.view.ideal,
+                &self.view.real,
                 &frame.imu_attitude,
                 predicted,
                 barometric,

@@ -24,12 +24,11 @@ fn localizer(c: &mut Criterion) {
                 .boxes
                 .iter()
                 .max_by(|a, b| a.bbox.iou(&d.bbox).total_cmp(&b.bbox.iou(&d.bbox)))?;
-            Some(Observation {
-                tower: &map.towers[map.index_of(&b.tower_id)?],
-                bbox: d.bbox,
-                score: d.score,
-                lens_stretch: 1.0,
-            })
+            Some(Observation::new(
+                &map.towers[map.index_of(&b.tower_id)?],
+                d.bbox,
+                d.score,
+            ))
         })
         .collect();
     let params = LocalizerParams::default();

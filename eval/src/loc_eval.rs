@@ -193,12 +193,7 @@ pub fn run(
             let rel = (tower.foot_in_world - p).xy();
             let (true_e, true_d) = (rel.dot(&right), rel.dot(&forward));
             let (paper_d, paper_e) = paper_range(k, tower.height_m, &t.bbox);
-            let obs = Observation {
-                tower,
-                bbox: t.bbox,
-                score: 1.0,
-                lens_stretch: 1.0,
-            };
+            let obs = Observation::new(tower, t.bbox, 1.0);
             let ours = single_tower_position(&obs, &camera, &frame.imu_attitude).map(|q| {
                 let rel = (tower.foot_in_world - q).xy();
                 (rel.dot(&right), rel.dot(&forward))

@@ -2,14 +2,15 @@
 //! position and yaw left free: the projection a localizer fits, with its
 //! analytic Jacobian with respect to (east, north, up, yaw).
 
-use nalgebra::{Matrix3, Point3, RowVector4, UnitQuaternion, Vector3};
+use nalgebra::{Matrix2, Matrix3, Point3, RowVector4, UnitQuaternion, Vector2, Vector3};
 
-use crate::{Attitude, Intrinsics, PinholeCamera, Pose};
+use crate::{Attitude, Distortion, Intrinsics, PinholeCamera, Pose};
 
 /// The camera for one frame with yaw left free: `camera_from_world = A * Rz(yaw)^T`.
 #[derive(Debug, Clone, Copy)]
 pub struct FrameCamera {
     pub k: Intrinsics,
+    pub distortion: Distortion,
     /// Camera-from-level rotation: the mount, roll and pitch together.
     camera_from_level: Matrix3<f64>,
 }
@@ -23,6 +24,7 @@ impl FrameCamera {
         let world_from_camera: UnitQuaternion<f64> = camera.world_from_camera(&level).rotation;
         Self {
             k: camera.intrinsics,
+            distortion: camera.distortion,
             camera_from_level: world_from_camera
                 .inverse()
                 .to_rotation_matrix()
@@ -66,6 +68,64 @@ impl FrameCamera {
             depth: p.z,
         })
     }
+
+    /// [`Self::project`] carried through the lens into the real image: the
+    /// pixel the real camera sees the point at, with its Jacobians.
+    pub fn project_through_lens(
+        &self,
+        point_in_world: &Point3<f64>,
+        position: &Point3<f64>,
+        yaw: f64,
+    ) -> Option<Projected> {
+        self.project(point_in_world, position, yaw)
+            .map(|p| self.through_lens(&p))
+    }
+
+    /// An ideal projection moved into the real image, its Jacobians carried
+    /// by the chain rule. Depth stays the ideal projection's.
+    fn through_lens(&self, p: &Projected) -> Projected {
+        if self.distortion.is_none() {
+            return *p;
+        }
+        let k = &self.k;
+        let real = self.distortion.distort(self.normalized(p.u, p.v));
+        let j = self.lens_jacobian(p.u, p.v);
+        Projected {
+            u: k.cx + k.fx * real.x,
+            v: k.cy + k.fy * real.y,
+            du: p.du * j[(0, 0)] + p.dv * j[(0, 1)],
+            dv: p.du * j[(1, 0)] + p.dv * j[(1, 1)],
+            depth: p.depth,
+        }
+    }
+
+    /// Real-image pixels per ideal-image pixel at the ideal pixel `(u, v)`:
+    /// d(real)/d(ideal), the identity without a lens.
+    fn lens_jacobian(&self, u: f64, v: f64) -> Matrix2<f64> {
+        if self.distortion.is_none() {
+            return Matrix2::identity();
+        }
+        let ideal = self.normalized(u, v);
+        // By central differences: the lens models are smooth, and this
+        // stays right for every model.
+        const H: f64 = 1e-6;
+        let column = |e: Vector2<f64>| {
+            (self.distortion.distort(ideal + e * H) - self.distortion.distort(ideal - e * H))
+                / (2.0 * H)
+        };
+        let j = Matrix2::from_columns(&[column(Vector2::x()), column(Vector2::y())]);
+        let k = &self.k;
+        Matrix2::new(
+            j[(0, 0)],
+            j[(0, 1)] * k.fx / k.fy,
+            j[(1, 0)] * k.fy / k.fx,
+            j[(1, 1)],
+        )
+    }
+
+    fn normalized(&self, u: f64, v: f64) -> Vector2<f64> {
+        Vector2::new((u - self.k.cx) / self.k.fx, (v - self.k.cy) / self.k.fy)
+    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -104,6 +164,39 @@ mod tests {
                 let (pa, pb) = (fc.project(&target, &a, ya).expect("a"), fc.project(&target, &b, yb).expect("b"));
                 prop_assert!(((pb.u - pa.u) / (2.0 * h) - p.du[i]).abs() < 1e-4 * (1.0 + p.du[i].abs()));
                 prop_assert!(((pb.v - pa.v) / (2.0 * h) - p.dv[i]).abs() < 1e-4 * (1.0 + p.dv[i].abs()));
+            }
+        }
+
+        /// Through a barrel or fisheye lens, the pixel is the camera module's
+        /// and the Jacobian agrees with finite differences.
+        #[test]
+        fn through_a_lens_projection_and_jacobian_hold(
+            x in -20.0f64..20.0, y in -20.0f64..20.0, yaw in -0.5f64..0.5,
+            roll in -0.3f64..0.3, pitch in -0.3f64..0.3, fisheye in proptest::bool::ANY,
+        ) {
+            let mut camera = PinholeCamera::default_hd();
+            camera.distortion = if fisheye {
+                Distortion::Fisheye { k1: -0.02, k2: 0.01, k3: -0.004, k4: 0.0006 }
+            } else {
+                Distortion::RadialTangential { k1: -0.28, k2: 0.08, p1: 1e-3, p2: -2e-3, k3: -0.01 }
+            };
+            let attitude = Attitude { roll, pitch, yaw };
+            let fc = FrameCamera::new(&camera, &Attitude { yaw: 0.0, ..attitude });
+            let target = Point3::new(150.0, 60.0, 25.0);
+            let pos = Point3::new(x, y, 30.0);
+            let p = fc.project_through_lens(&target, &pos, yaw).expect("in front");
+            let pose = Pose { position_in_world: pos, attitude };
+            let expected = camera.project(&(camera.world_from_camera(&pose).inverse() * target)).expect("in front");
+            prop_assert!((p.u - expected.x).abs() < 1e-6 && (p.v - expected.y).abs() < 1e-6);
+            let h = 1e-5;
+            for i in 0..4 {
+                let (mut a, mut b) = (pos, pos);
+                let (mut ya, mut yb) = (yaw, yaw);
+                if i < 3 { a[i] -= h; b[i] += h; } else { ya -= h; yb += h; }
+                let pa = fc.project_through_lens(&target, &a, ya).expect("a");
+                let pb = fc.project_through_lens(&target, &b, yb).expect("b");
+                prop_assert!(((pb.u - pa.u) / (2.0 * h) - p.du[i]).abs() < 1e-3 * (1.0 + p.du[i].abs()));
+                prop_assert!(((pb.v - pa.v) / (2.0 * h) - p.dv[i]).abs() < 1e-3 * (1.0 + p.dv[i].abs()));
             }
         }
 

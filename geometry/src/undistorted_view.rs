@@ -6,16 +6,15 @@
 //! (a barrel lens pushes them out). A box side that the real frame's edge
 //! cuts is put on or past the ideal image's edge, so "cut" means in the
 //! ideal image what it meant in the real one; a side the lens only pushed
-//! out reads as cut too, which costs that side's evidence and nothing else.
+//! out reads as cut there too, which costs identity that side's evidence.
+//! The localizer measures in the real image, where such a box is whole.
 
 #[cfg(test)]
 use nalgebra::Point2;
 
 use crate::camera::PinholeCamera;
+use crate::image_edge::EDGE_MARGIN_PX as EDGE_PX;
 use crate::pixel_box::PixelBox;
-
-/// An edge this close to the real image's border is cut by it.
-const EDGE_PX: f64 = 4.0;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UndistortedView {
@@ -58,21 +57,6 @@ impl UndistortedView {
         Some(b)
     }
 
-    /// Ideal-image pixels per real-image pixel along an ideal box's height:
-    /// how much undistortion stretched it (1 without a lens).
-    pub fn stretch(&self, ideal: &PixelBox) -> f64 {
-        if self.real.distortion.is_none() {
-            return 1.0;
-        }
-        let real = self.real.distort_box(ideal);
-        let (h_ideal, h_real) = (ideal.height(), real.height());
-        if h_ideal > 1.0 && h_real > 1.0 {
-            (h_ideal / h_real).clamp(0.25, 4.0)
-        } else {
-            1.0
-        }
-    }
-
     /// An ideal-image box back on the real image, for drawing.
     pub fn to_real(&self, ideal: &PixelBox) -> PixelBox {
         if self.real.distortion.is_none() {
@@ -102,17 +86,6 @@ mod tests {
                 k3: 0.0,
             },
         }
-    }
-
-    #[test]
-    fn a_barrel_lens_stretches_boxes_at_the_sides_not_at_the_centre() {
-        let view = UndistortedView::new(&barrel());
-        let centre = view.stretch(&PixelBox::new(630.0, 300.0, 650.0, 420.0));
-        assert!((centre - 1.0).abs() < 0.02, "{centre}");
-        let side = view.stretch(&PixelBox::new(-60.0, 250.0, -30.0, 470.0));
-        assert!(side > 1.1, "{side}");
-        let ideal = UndistortedView::new(&barrel().ideal());
-        assert_eq!(ideal.stretch(&PixelBox::new(0.0, 0.0, 10.0, 10.0)), 1.0);
     }
 
     #[test]

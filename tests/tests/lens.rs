@@ -1,12 +1,17 @@
 //! A real lens through the whole chain: the simulator's camera bends its
 //! rays as a calibrated lens does, and the pipeline, told the calibration,
-//! localizes nearly as well as through an ideal lens. Told nothing, it does
-//! not. The periphery, where the lens squeezes the towers, is worth less:
-//! on seed 1 of this flight (oracle boxes) the median error is 0.45 m through
-//! an ideal lens and 0.48 m through the barrel lens, but a few stretches of
-//! peripheral towers lift the RMS from 0.96 m to 1.38 m (1.35 m through the
-//! fisheye). With the coast ended by the covariance rather than after 5 s,
-//! that gap is no longer hidden under the coasting errors both shared.
+//! localizes as well as through an ideal lens. Told nothing, it does not.
+//!
+//! The localizer reads each box's rows in the real image against the tower
+//! drawn through the lens. Reading them from undistorted boxes instead, a
+//! tower the frame's edge cuts at the side had its top and foot undistorted
+//! at the visible part's centre, not the apex's column: on seed 1 of this
+//! flight (oracle boxes) that lifted the RMS from 0.96 m through an ideal
+//! lens to 1.38 m through the barrel lens. Read in the real image, the
+//! barrel lens gives 0.91 m (it sees wider, so more towers), with a median
+//! of 0.54 m against 0.45 m (the fisheye 0.92 m and 0.57 m): the box's
+//! centre is the middle of the bent cross-arms, a pixel or two off the axis
+//! at the sides.
 
 use towernav_core::landmarks::LandmarkMap;
 use towernav_core::pipeline::PipelineConfig;
@@ -38,6 +43,10 @@ fn a_calibrated_lens_localizes_as_well_as_an_ideal_one() {
         ..bent.camera.mount
     };
     let calibrated = evaluate(&bent, 0.0, 1).summary().filtered;
+    eprintln!(
+        "barrel: RMS {:.2} m, median {:.2} m; ideal: RMS {:.2} m, median {:.2} m",
+        calibrated.rms, calibrated.median, ideal.rms, ideal.median
+    );
     assert!(
         calibrated.count as f64 > 0.95 * ideal.count as f64,
         "{} estimates against {}",
@@ -45,14 +54,14 @@ fn a_calibrated_lens_localizes_as_well_as_an_ideal_one() {
         ideal.count
     );
     assert!(
-        calibrated.median <= 1.15 * ideal.median && calibrated.within_5m >= 0.97,
+        calibrated.median <= 1.3 * ideal.median && calibrated.within_5m >= 0.97,
         "median {:.2} m through the lens against {:.2} m, {:.1} % within 5 m",
         calibrated.median,
         ideal.median,
         100.0 * calibrated.within_5m
     );
     assert!(
-        calibrated.rms <= 1.5 * ideal.rms,
+        calibrated.rms <= 1.1 * ideal.rms,
         "RMS {:.2} m through the lens against {:.2} m through an ideal one",
         calibrated.rms,
         ideal.rms
@@ -81,15 +90,19 @@ fn a_fisheye_lens_localizes_as_well_as_an_ideal_one() {
         k4: 0.0006,
     };
     let calibrated = evaluate(&bent, 0.0, 1).summary().filtered;
+    eprintln!(
+        "fisheye: RMS {:.2} m, median {:.2} m; ideal: RMS {:.2} m, median {:.2} m",
+        calibrated.rms, calibrated.median, ideal.rms, ideal.median
+    );
     assert!(
-        calibrated.median <= 1.15 * ideal.median && calibrated.within_5m >= 0.97,
+        calibrated.median <= 1.3 * ideal.median && calibrated.within_5m >= 0.97,
         "median {:.2} m through the fisheye against {:.2} m, {:.1} % within 5 m",
         calibrated.median,
         ideal.median,
         100.0 * calibrated.within_5m
     );
     assert!(
-        calibrated.rms <= 1.5 * ideal.rms,
+        calibrated.rms <= 1.1 * ideal.rms,
         "RMS {:.2} m through the fisheye against {:.2} m",
         calibrated.rms,
         ideal.rms

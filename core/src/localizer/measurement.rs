@@ -1,14 +1,19 @@
-//! What a box says about the pose, in pixels: the predicted rows of a tower's
-//! top and foot and the column of its axis, with their Jacobians with respect to
-//! (east, north, up, yaw), and the spread of each measured edge.
+//! What a box says about the pose, in the real image's pixels: the predicted
+//! rows of a tower's top and foot and the column of its axis, drawn through
+//! the lens, with their Jacobians with respect to (east, north, up, yaw), and
+//! the spread of each measured edge.
+//!
+//! The real image is where the detector drew the box and erred: its top is
+//! the apex's row at the apex's column, which an undistorted box cannot know
+//! when the frame's edge cuts a side.
 //!
 //! Roll and pitch come from the IMU and are held fixed; the camera mount is
 //! folded in with them, so the same code serves any attitude.
 
 use nalgebra::{Point3, RowVector4};
-use towernav_geometry::{FrameCamera, Intrinsics, Projected};
+use towernav_geometry::{Cut, FrameCamera, Intrinsics, Projected};
 
-use super::{LocalizerParams, Observation, touches_edge};
+use super::{LocalizerParams, Observation};
 
 /// One scalar measurement: its value, prediction, Jacobian row and spread.
 #[derive(Debug, Clone, Copy)]
@@ -29,19 +34,11 @@ pub struct Usable {
 
 impl Usable {
     pub fn of(o: &Observation<'_>, k: &Intrinsics) -> Self {
-        const MARGIN: f64 = super::EDGE_MARGIN_PX;
-        let b = &o.bbox;
-        if !touches_edge(b, k) {
-            return Self {
-                centre: true,
-                top: true,
-                bottom: true,
-            };
-        }
+        let cut = Cut::in_frame(&o.raw, k);
         Self {
-            centre: b.left > MARGIN && b.right < f64::from(k.width) - MARGIN,
-            top: b.top > MARGIN,
-            bottom: b.bottom < f64::from(k.height) - MARGIN,
+            centre: !cut.side(),
+            top: !cut.top,
+            bottom: !cut.bottom,
         }
     }
 
@@ -50,22 +47,15 @@ impl Usable {
     }
 }
 
-/// Spread of one box edge in the ideal image: grows for small boxes and low
-/// scores (both as the detector saw them, in the real image) and with the
-/// lens's stretch at the box.
+/// Spread of one box edge in the real image: grows for small boxes and low scores.
 pub fn edge_sigma(o: &Observation<'_>, params: &LocalizerParams) -> f64 {
-    let stretch = if o.lens_stretch.is_finite() && o.lens_stretch > 0.0 {
-        o.lens_stretch
-    } else {
-        1.0
-    };
-    let h = (o.bbox.height() / stretch).max(1.0);
+    let h = o.raw.height().max(1.0);
     let score = if o.score.is_finite() {
         o.score.clamp(0.0, 1.0)
     } else {
         0.0
     };
-    stretch * params.edge_sigma_px * (1.0 + params.small_box_px / h) * (1.0 + 0.5 * (1.0 - score))
+    params.edge_sigma_px * (1.0 + params.small_box_px / h) * (1.0 + 0.5 * (1.0 - score))
 }
 
 /// The usable residuals of one observation at state (position, yaw); `out` is cleared first.
@@ -81,8 +71,8 @@ pub fn residuals(
 ) -> bool {
     out.clear();
     let (Some(top), Some(foot)) = (
-        camera.project(&o.tower.top_in_world(), position, yaw),
-        camera.project(&o.tower.foot_in_world, position, yaw),
+        camera.project_through_lens(&o.tower.top_in_world(), position, yaw),
+        camera.project_through_lens(&o.tower.foot_in_world, position, yaw),
     ) else {
         return false;
     };
@@ -94,27 +84,28 @@ pub fn residuals(
         let range_share = (p.v - k.cy) / p.depth;
         (k.fy * sv / p.depth).powi(2) + (range_share * sh).powi(2)
     };
+    let b = &o.raw;
     if usable.centre {
         let predicted = 0.5 * (top.u + foot.u);
-        let width_term = params.centre_width_share * o.bbox.width();
+        let width_term = params.centre_width_share * b.width();
         let sigma2 =
             0.5 * sigma_e * sigma_e + width_term * width_term + (k.fx * sh / foot.depth).powi(2);
         out.push(Residual {
-            r: o.bbox.center_x() - predicted,
+            r: b.center_x() - predicted,
             jacobian: 0.5 * (top.du + foot.du),
             sigma: sigma2.sqrt(),
         });
     }
     if usable.top {
         out.push(Residual {
-            r: o.bbox.top - top.v,
+            r: b.top - top.v,
             jacobian: top.dv,
             sigma: (sigma_e * sigma_e + survey_v(&top)).sqrt(),
         });
     }
     if usable.bottom {
         out.push(Residual {
-            r: o.bbox.bottom - foot.v,
+            r: b.bottom - foot.v,
             jacobian: foot.dv,
             sigma: (sigma_e * sigma_e + survey_v(&foot)).sqrt(),
         });

@@ -13,7 +13,7 @@ mod robust;
 mod single;
 
 use nalgebra::{Matrix4, Point3};
-use towernav_geometry::{Intrinsics, PixelBox};
+use towernav_geometry::PixelBox;
 
 use crate::landmarks::MapTower;
 
@@ -92,13 +92,27 @@ impl Default for LocalizerParams {
 #[derive(Debug, Clone, Copy)]
 pub struct Observation<'a> {
     pub tower: &'a MapTower,
+    /// The box in the ideal pinhole's image: the paper's method knows no lens.
     pub bbox: PixelBox,
+    /// The box as the real camera saw it. Ours measures here, through the
+    /// lens model: the detector errs in these pixels, and a box the frame's
+    /// edge cuts has its top and foot at columns its undistorted box cannot
+    /// know.
+    pub raw: PixelBox,
     /// Detector confidence, 0..1.
     pub score: f64,
-    /// Ideal-image pixels per real-image pixel at the box (1 without a
-    /// lens): the detector errs in the real image's pixels, so a box that
-    /// undistortion stretched is that much less precise in the ideal one.
-    pub lens_stretch: f64,
+}
+
+impl<'a> Observation<'a> {
+    /// A box from a camera with no lens: the real image is the ideal one.
+    pub fn new(tower: &'a MapTower, bbox: PixelBox, score: f64) -> Self {
+        Self {
+            tower,
+            bbox,
+            raw: bbox,
+            score,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -108,17 +122,4 @@ pub struct Fix {
     /// (east, north, up, yaw).
     pub covariance: Matrix4<f64>,
     pub towers_used: Vec<String>,
-}
-
-/// An edge this close to the image border is taken to be the border: a
-/// detector's edge noise pulls a cut box's edges a few pixels inside.
-pub const EDGE_MARGIN_PX: f64 = 4.0;
-
-/// Whether the image edge cuts the box, which makes its height a lie.
-pub fn touches_edge(b: &PixelBox, k: &Intrinsics) -> bool {
-    const MARGIN: f64 = EDGE_MARGIN_PX;
-    b.left <= MARGIN
-        || b.top <= MARGIN
-        || b.right >= f64::from(k.width) - MARGIN
-        || b.bottom >= f64::from(k.height) - MARGIN
 }

@@ -11,9 +11,9 @@
 //! marked unknown by a spread no one would fuse.
 
 use nalgebra::{Matrix2, Matrix4, Point3, Vector2};
-use towernav_geometry::{Intrinsics, PixelBox};
+use towernav_geometry::{Cut, Intrinsics, PixelBox};
 
-use super::{Fix, LocalizerParams, Observation, touches_edge};
+use super::{Fix, LocalizerParams, Observation};
 
 /// The paper's range formula for one box of a tower `tower_height_m` tall:
 /// `(D, E)`, metres along the optical axis and to its right, camera level.
@@ -66,7 +66,7 @@ pub fn paper_lbl(
     for o in observations {
         let b = &o.bbox;
         let h = b.height();
-        if h < min_h || touches_edge(b, k) {
+        if h < min_h || Cut::in_frame(&o.raw, k).any() {
             continue;
         }
         let big_h = o.tower.height_m;
@@ -131,7 +131,7 @@ mod tests {
             let a = ahead(150.0, 40.0);
             let b = ahead(220.0, -60.0);
             let towers = [tower("B1", a.x, a.y, 38.0), tower("B2", b.x, b.y, 45.0)];
-            let obs: Vec<_> = towers.iter().map(|t| Observation { tower: t, bbox: label(&camera, &pose, t), score: 0.9 , lens_stretch: 1.0}).collect();
+            let obs: Vec<_> = towers.iter().map(|t| Observation::new(t, label(&camera, &pose, t), 0.9 )).collect();
             let height = Height { up_m: z, sigma_m: 1.0 };
             let fix = paper_lbl(&obs, &camera.intrinsics, yaw, height, &LocalizerParams::default()).expect("fix");
             prop_assert!((fix.position_in_world - pose.position_in_world).norm() < 1e-6);
@@ -144,18 +144,8 @@ mod tests {
     fn small_or_cut_boxes_give_no_fix() {
         let k = PinholeCamera::default_hd().intrinsics;
         let t = tower("B1", 100.0, 0.0, 38.0);
-        let tiny = Observation {
-            tower: &t,
-            bbox: PixelBox::new(600.0, 300.0, 604.0, 310.0),
-            score: 0.9,
-            lens_stretch: 1.0,
-        };
-        let cut = Observation {
-            tower: &t,
-            bbox: PixelBox::new(600.0, 100.0, 640.0, 720.0),
-            score: 0.9,
-            lens_stretch: 1.0,
-        };
+        let tiny = Observation::new(&t, PixelBox::new(600.0, 300.0, 604.0, 310.0), 0.9);
+        let cut = Observation::new(&t, PixelBox::new(600.0, 100.0, 640.0, 720.0), 0.9);
         assert!(
             paper_lbl(
                 &[tiny, cut],
@@ -177,12 +167,7 @@ mod tests {
         };
         let sigma_forward = |d: f64| {
             let t = tower("B1", d, 0.0, 38.0);
-            let obs = [Observation {
-                tower: &t,
-                bbox: label(&camera, &pose, &t),
-                score: 0.9,
-                lens_stretch: 1.0,
-            }];
+            let obs = [Observation::new(&t, label(&camera, &pose, &t), 0.9)];
             paper_lbl(
                 &obs,
                 &camera.intrinsics,

@@ -139,7 +139,7 @@ fn candidates<'a, 'b>(
     observations
         .iter()
         .enumerate()
-        .filter(|(_, o)| o.bbox.is_finite() && o.bbox.height() >= params.min_box_height_px)
+        .filter(|(_, o)| o.raw.is_finite() && o.raw.height() >= params.min_box_height_px)
         .map(|(index, obs)| Candidate {
             index,
             obs,
@@ -425,12 +425,7 @@ mod tests {
             .iter()
             .filter_map(|t| {
                 let n = noise.as_mut().map(|(rng, s)| (&mut **rng, *s));
-                label(camera, pose, t, n).map(|bbox| Observation {
-                    tower: t,
-                    bbox,
-                    score: 1.0,
-                    lens_stretch: 1.0,
-                })
+                label(camera, pose, t, n).map(|bbox| Observation::new(t, bbox, 1.0))
             })
             .collect()
     }
@@ -481,12 +476,11 @@ mod tests {
             "the top is out of the image, the foot in: {top} {foot}"
         );
         let centre = 0.5 * (foot.x + top.x);
-        let obs = [Observation {
-            tower: &near[0],
-            bbox: PixelBox::new(centre - 10.0, 0.0, centre + 10.0, foot.y),
-            score: 0.9,
-            lens_stretch: 1.0,
-        }];
+        let obs = [Observation::new(
+            &near[0],
+            PixelBox::new(centre - 10.0, 0.0, centre + 10.0, foot.y),
+            0.9,
+        )];
         let params = LocalizerParams::default();
         let prior = Some(Point3::new(3.0, -2.0, 30.0));
         assert!(robust_lbl(&obs, &camera, &pose.attitude, prior, &params).is_none());
@@ -611,12 +605,11 @@ mod tests {
             .expect("foot, below the image");
         assert!(foot.y > 720.0);
         let centre = 0.5 * (top.x + foot.x);
-        obs.push(Observation {
-            tower: &near,
-            bbox: PixelBox::new(centre - 30.0, top.y, centre + 30.0, 720.0),
-            score: 0.9,
-            lens_stretch: 1.0,
-        });
+        obs.push(Observation::new(
+            &near,
+            PixelBox::new(centre - 30.0, top.y, centre + 30.0, 720.0),
+            0.9,
+        ));
         let fix = robust_lbl(
             &obs,
             &camera,
@@ -630,6 +623,72 @@ mod tests {
             fix.fix.towers_used.contains(&"N1".to_string()),
             "its top and centre still count"
         );
+    }
+
+    #[test]
+    fn through_a_barrel_lens_a_tower_the_frame_cuts_at_a_side_keeps_its_rows() {
+        let mut camera = PinholeCamera::default_hd();
+        camera.distortion = towernav_geometry::Distortion::RadialTangential {
+            k1: -0.28,
+            k2: 0.08,
+            p1: 1e-3,
+            p2: -2e-3,
+            k3: -0.01,
+        };
+        let view = towernav_geometry::UndistortedView::new(&camera);
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: attitude(0.0, 0.0, 0.0),
+        };
+        // Boxes as a lens draws them: drawn in the ideal image about the
+        // axis, then bent into the real one and cut by its edge.
+        fn seen<'a>(
+            view: &towernav_geometry::UndistortedView,
+            pose: &Pose,
+            t: &'a MapTower,
+            half_width: f64,
+        ) -> Observation<'a> {
+            let cfw = view.ideal.world_from_camera(pose).inverse();
+            let top = view.ideal.project(&(cfw * t.top_in_world())).expect("top");
+            let foot = view.ideal.project(&(cfw * t.foot_in_world)).expect("foot");
+            let c = 0.5 * (top.x + foot.x);
+            let ideal = PixelBox::new(c - half_width, top.y, c + half_width, foot.y);
+            // The real box: the apex's and the foot's rows as the lens bends
+            // them, its sides where the frame's edge cuts them.
+            let cfw = view.real.world_from_camera(pose).inverse();
+            let top = view.real.project(&(cfw * t.top_in_world())).expect("top");
+            let foot = view.real.project(&(cfw * t.foot_in_world)).expect("foot");
+            let sides = view.to_real(&ideal);
+            let k = &view.real.intrinsics;
+            let raw = PixelBox::new(sides.left, top.y, sides.right, foot.y)
+                .clipped(f64::from(k.width), f64::from(k.height));
+            let mut o = Observation::new(t, ideal, 1.0);
+            o.raw = raw;
+            o
+        }
+        let towers = [
+            tower("A1", 150.0, 60.0, 32.0),
+            tower("B1", 120.0, -50.0, 38.0),
+        ];
+        let cut = tower("N1", 100.0, 82.0, 40.0);
+        let mut obs: Vec<_> = towers.iter().map(|t| seen(&view, &pose, t, 6.0)).collect();
+        obs.push(seen(&view, &pose, &cut, 60.0));
+        // The cut box undistorted as the pipeline does it: its top and foot
+        // taken at the visible part's centre, not at the apex's column.
+        obs[2].bbox = view.to_ideal(&obs[2].raw).expect("maps");
+        let edge = obs[2].raw;
+        assert!(
+            edge.left <= 1.0 && edge.right > 20.0,
+            "cut at the left: {edge:?}"
+        );
+        let params = LocalizerParams::default();
+        let fix = robust_lbl(&obs, &camera, &pose.attitude, None, &params).expect("fix");
+        assert!(
+            (fix.fix.position_in_world - pose.position_in_world).norm() < 0.01,
+            "{}",
+            fix.fix.position_in_world
+        );
+        assert!(fix.fix.towers_used.contains(&"N1".to_string()));
     }
 
     #[test]
@@ -725,21 +784,15 @@ mod tests {
             let obs: Vec<Observation> = boxes
                 .iter()
                 .map(|&(i, b)| {
-                    let probe = Observation {
-                        tower: &towers[i],
-                        bbox: b,
-                        score: 1.0,
-                        lens_stretch: 1.0,
-                    };
+                    let probe = Observation::new(&towers[i], b, 1.0);
                     let s = super::super::measurement::edge_sigma(&probe, &params);
                     let mut n = || s * rng.sample::<f64, _>(StandardNormal);
                     let (dl, dt, dr, db) = (n(), n(), n(), n());
-                    Observation {
-                        tower: &towers[i],
-                        bbox: PixelBox::new(b.left + dl, b.top + dt, b.right + dr, b.bottom + db),
-                        score: 1.0,
-                        lens_stretch: 1.0,
-                    }
+                    Observation::new(
+                        &towers[i],
+                        PixelBox::new(b.left + dl, b.top + dt, b.right + dr, b.bottom + db),
+                        1.0,
+                    )
                 })
                 .collect();
             if obs.len() < 2 {

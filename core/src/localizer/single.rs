@@ -20,9 +20,12 @@ pub fn single_tower_position(
         attitude: *attitude,
     };
     let world_from_camera = camera.world_from_camera(&pose).rotation;
-    let u = o.bbox.center_x();
-    let to_top = world_from_camera * camera.ray(&Point2::new(u, o.bbox.top));
-    let to_foot = world_from_camera * camera.ray(&Point2::new(u, o.bbox.bottom));
+    // The real image's box through the real camera's rays: the lens undone
+    // at its top and foot.
+    let b = &o.raw;
+    let u = b.center_x();
+    let to_top = world_from_camera * camera.ray(&Point2::new(u, b.top));
+    let to_foot = world_from_camera * camera.ray(&Point2::new(u, b.bottom));
     let (top_h, foot_h) = (to_top.xy().norm(), to_foot.xy().norm());
     if top_h < 1e-9 || foot_h < 1e-9 {
         return None;
@@ -72,12 +75,11 @@ mod tests {
         let cfw = camera.world_from_camera(&pose).inverse();
         let top = camera.project(&(cfw * tower.top_in_world())).expect("top");
         let foot = camera.project(&(cfw * tower.foot_in_world)).expect("foot");
-        let o = Observation {
-            tower: &tower,
-            bbox: PixelBox::new(top.x - 5.0, top.y, top.x + 5.0, foot.y),
-            score: 0.9,
-            lens_stretch: 1.0,
-        };
+        let o = Observation::new(
+            &tower,
+            PixelBox::new(top.x - 5.0, top.y, top.x + 5.0, foot.y),
+            0.9,
+        );
         let ours = single_tower_position(&o, &camera, &attitude).expect("fix");
         assert!((ours - pose.position_in_world).norm() < 1e-6, "{ours}");
         // The paper's level-camera geometry on the same box is off in range
