@@ -640,29 +640,22 @@ mod tests {
             position_in_world: Point3::new(0.0, 0.0, 30.0),
             attitude: attitude(0.0, 0.0, 0.0),
         };
-        // Boxes as a lens draws them: drawn in the ideal image about the
-        // axis, then bent into the real one and cut by its edge.
+        // Boxes as a lens draws them: about the bent axis, from the apex's
+        // row to the foot's, cut by the real frame's edge.
         fn seen<'a>(
             view: &towernav_geometry::UndistortedView,
             pose: &Pose,
             t: &'a MapTower,
             half_width: f64,
         ) -> Observation<'a> {
-            let cfw = view.ideal.world_from_camera(pose).inverse();
-            let top = view.ideal.project(&(cfw * t.top_in_world())).expect("top");
-            let foot = view.ideal.project(&(cfw * t.foot_in_world)).expect("foot");
-            let c = 0.5 * (top.x + foot.x);
-            let ideal = PixelBox::new(c - half_width, top.y, c + half_width, foot.y);
-            // The real box: the apex's and the foot's rows as the lens bends
-            // them, its sides where the frame's edge cuts them.
             let cfw = view.real.world_from_camera(pose).inverse();
             let top = view.real.project(&(cfw * t.top_in_world())).expect("top");
             let foot = view.real.project(&(cfw * t.foot_in_world)).expect("foot");
-            let sides = view.to_real(&ideal);
+            let c = 0.5 * (top.x + foot.x);
             let k = &view.real.intrinsics;
-            let raw = PixelBox::new(sides.left, top.y, sides.right, foot.y)
+            let raw = PixelBox::new(c - half_width, top.y, c + half_width, foot.y)
                 .clipped(f64::from(k.width), f64::from(k.height));
-            let mut o = Observation::new(t, ideal, 1.0);
+            let mut o = Observation::new(t, view.to_ideal(&raw).expect("maps"), 1.0);
             o.raw = raw;
             o
         }
@@ -673,9 +666,6 @@ mod tests {
         let cut = tower("N1", 100.0, 82.0, 40.0);
         let mut obs: Vec<_> = towers.iter().map(|t| seen(&view, &pose, t, 6.0)).collect();
         obs.push(seen(&view, &pose, &cut, 60.0));
-        // The cut box undistorted as the pipeline does it: its top and foot
-        // taken at the visible part's centre, not at the apex's column.
-        obs[2].bbox = view.to_ideal(&obs[2].raw).expect("maps");
         let edge = obs[2].raw;
         assert!(
             edge.left <= 1.0 && edge.right > 20.0,
