@@ -131,7 +131,7 @@ mod tests {
             let a = ahead(150.0, 40.0);
             let b = ahead(220.0, -60.0);
             let towers = [tower("B1", a.x, a.y, 38.0), tower("B2", b.x, b.y, 45.0)];
-            let obs: Vec<_> = towers.iter().map(|t| Observation::new(t, label(&camera, &pose, t), 0.9 )).collect();
+            let obs: Vec<_> = towers.iter().map(|t| Observation::new(t, label(&camera, &pose, t), 0.9)).collect();
             let height = Height { up_m: z, sigma_m: 1.0 };
             let fix = paper_lbl(&obs, &camera.intrinsics, yaw, height, &LocalizerParams::default()).expect("fix");
             prop_assert!((fix.position_in_world - pose.position_in_world).norm() < 1e-6);
