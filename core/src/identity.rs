@@ -3,8 +3,8 @@
 //! Map-based association: every tower of the track's type is projected into the
 //! image from the current pose guess, and unbound tracks are matched to free
 //! towers by a Hungarian assignment on bearing and size. A binding holds until its
-//! track ends, unless it keeps disagreeing with a trusted pose; an operator's
-//! correction pins it.
+//! track ends, unless a trusted pose keeps putting the track on another tower
+//! (then it moves) or on none; an operator's correction pins it.
 
 use std::collections::HashMap;
 
@@ -58,10 +58,24 @@ impl Default for IdentityParams {
             gate: 3.0,
             release_gate: 4.5,
             release_after: 10,
-            switch_margin: 1.0,
+            switch_margin: 0.5,
         }
     }
 }
+
+/// Where a tower should stand in the image from the pose guess, pixels.
+#[derive(Debug, Clone, Copy)]
+struct Prediction {
+    /// The column of its axis, halfway between apex and foot.
+    u: f64,
+    top: f64,
+    foot: f64,
+    height: f64,
+}
+
+/// The score that keeps a binding no evidence speaks against; just above
+/// the matcher's resolution.
+const KEEP: f64 = 1e-3;
 
 #[derive(Debug, Clone, Default)]
 pub struct Identity {
@@ -138,12 +152,12 @@ impl Identity {
         Some(1.0 - f64::from(strikes.min(limit)) / f64::from(limit))
     }
 
-    /// Normalised distance between a track's box and a tower's predicted one
-    /// (bearing and log size; size is skipped for a box cut by the image edge).
+    /// Normalised distance between a track's box and a tower's predicted one:
+    /// bearing, log size and, with a trusted guess, the foot's (or apex's) row.
     fn distance(
         &self,
         track: &TrackOutput,
-        predicted: (f64, f64, f64),
+        predicted: Prediction,
         image: (f64, f64),
         trusted: bool,
     ) -> Option<f64> {
@@ -153,10 +167,10 @@ impl Identity {
         } else {
             (p.bearing_sigma_px, p.log_size_sigma)
         };
-        let (u, h, foot_v) = predicted;
         let b = &track.bbox;
         // An edge at the image border is the border's, not the tower's: a box
-        // cut at a side says nothing of the centre, one cut at top or bottom nothing of size.
+        // cut at a side says nothing of the centre, one cut at top or bottom
+        // nothing of size but that the tower is at least as tall as what shows.
         let cut = Cut::in_image(b, image.0, image.1);
         let (cut_side, cut_end) = (cut.side(), cut.end());
         if cut_side && cut_end {
@@ -167,28 +181,37 @@ impl Identity {
         let bearing = if cut_side {
             0.0
         } else {
-            (b.center_x() - u) / (bearing_sigma + 0.08 * b.width())
+            (b.center_x() - predicted.u) / (bearing_sigma + 0.08 * b.width())
         };
-        let size = if cut_end || h <= 0.0 {
+        let size = if predicted.height <= 0.0 {
             0.0
         } else {
-            (b.height() / h).ln() / size_sigma
+            let log_ratio = (b.height() / predicted.height).ln();
+            if cut_end {
+                log_ratio.max(0.0) / size_sigma
+            } else {
+                log_ratio / size_sigma
+            }
         };
         // The foot's row tells range apart from height: a taller tower farther
-        // along the same bearing can have the same box height, never the same foot.
-        let foot = if trusted && !cut.bottom {
-            (b.bottom - foot_v) / (bearing_sigma + 0.05 * b.height())
-        } else {
+        // along the same bearing can have the same box height, never the same
+        // foot. With the foot cut off, the apex's row does the same.
+        let row_sigma = bearing_sigma + 0.05 * b.height();
+        let row = if !trusted || (cut.top && cut.bottom) {
             0.0
+        } else if cut.bottom {
+            (b.top - predicted.top) / row_sigma
+        } else {
+            (b.bottom - predicted.foot) / row_sigma
         };
-        Some((bearing * bearing + size * size + foot * foot).sqrt())
+        Some((bearing * bearing + size * size + row * row).sqrt())
     }
 
     /// Binds this frame's tracks; returns each track's tower index, in order.
     /// `candidates` (towers near the pose guess) is asked at most once, and only when a
     /// track is unbound or the guess is trusted enough to check bindings.
     /// With `guess_trusted` (the filter is tracking), bindings that keep
-    /// disagreeing with the guess are released.
+    /// disagreeing with the guess are moved or released.
     pub fn update(
         &mut self,
         tracks: &[TrackOutput],
@@ -210,11 +233,16 @@ impl Identity {
             f64::from(camera.intrinsics.width),
             f64::from(camera.intrinsics.height),
         );
-        let predict = |i: usize| -> Option<(f64, f64, f64)> {
+        let predict = |i: usize| -> Option<Prediction> {
             let tower = &map.towers[i];
             let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
             let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
-            Some((0.5 * (foot.x + top.x), foot.y - top.y, foot.y))
+            Some(Prediction {
+                u: 0.5 * (foot.x + top.x),
+                top: top.y,
+                foot: foot.y,
+                height: foot.y - top.y,
+            })
         };
         // Towers near the guess, asked for once, and only when some track needs
         // them: to bind it, or (with a trusted guess) to check its binding.
@@ -225,7 +253,7 @@ impl Identity {
             .any(|t| guess_trusted || !self.bindings.contains_key(&t.track_id));
         let near: Vec<usize> = if needed { candidates() } else { Vec::new() };
         if guess_trusted {
-            self.release_disagreeing(tracks, &near, &predict, image, map);
+            self.reassign(tracks, &near, &predict, image, map);
         }
         self.bind_unbound(tracks, &near, &predict, image, map, guess_trusted);
         tracks
@@ -234,55 +262,93 @@ impl Identity {
             .collect()
     }
 
-    /// With a trusted guess: a binding far from its own tower, or beaten by a
-    /// tower of its type by the hysteresis margin, takes a strike; enough
-    /// strikes in a row release it.
-    fn release_disagreeing(
+    /// With a trusted guess, all unpinned tracks are matched afresh to the
+    /// nearby towers, each track's own tower favoured by the hysteresis margin.
+    /// A bound track the matching keeps moving elsewhere takes a strike; enough
+    /// strikes in a row move it to where the matching puts it (or unbind it).
+    /// Matching jointly undoes swaps: two tracks each bound to the other's
+    /// tower can only be put right together, never one by one.
+    fn reassign(
         &mut self,
         tracks: &[TrackOutput],
         near: &[usize],
-        predict: &dyn Fn(usize) -> Option<(f64, f64, f64)>,
+        predict: &dyn Fn(usize) -> Option<Prediction>,
         image: (f64, f64),
         map: &LandmarkMap,
     ) {
-        let bound_here: Vec<(&TrackOutput, usize)> = tracks
+        let open: Vec<&TrackOutput> = tracks
             .iter()
             .filter(|t| !self.pinned.contains_key(&t.track_id))
-            .filter_map(|t| self.bindings.get(&t.track_id).map(|&b| (t, b)))
             .collect();
-        // Predict each nearby tower once, not once per track.
-        let near_pred: Vec<(usize, (f64, f64, f64))> = near
-            .iter()
-            .filter_map(|&i| predict(i).map(|p| (i, p)))
-            .collect();
-        for (t, tower) in bound_here {
-            let own = near_pred
-                .iter()
-                .find(|(i, _)| *i == tower)
-                .map(|(_, p)| *p)
-                .or_else(|| predict(tower));
-            let current = own.map(|pred| self.distance(t, pred, image, true));
-            // Evidence against the binding: far from its own tower, or a
-            // tower of the same type fits clearly better (hysteresis margin).
-            let off = match current {
-                None => true,
-                Some(None) => false,
-                Some(Some(d)) => {
-                    d > self.params.release_gate
-                        || near_pred.iter().any(|&(other, p)| {
-                            other != tower
-                                && map.towers[other].tower_type == t.tower_type
-                                && self
-                                    .distance(t, p, image, true)
-                                    .is_some_and(|alt| alt + self.params.switch_margin < d)
-                        })
+        if !open.iter().any(|t| self.bindings.contains_key(&t.track_id)) {
+            return;
+        }
+        let pinned_towers: Vec<usize> = self.pinned.values().flatten().copied().collect();
+        let mut towers: Vec<usize> = near.to_vec();
+        for t in &open {
+            if let Some(&b) = self.bindings.get(&t.track_id)
+                && !towers.contains(&b)
+            {
+                towers.push(b);
+            }
+        }
+        towers.retain(|i| !pinned_towers.contains(i));
+        // Predict each tower once, not once per track.
+        let predicted: Vec<Option<Prediction>> = towers.iter().map(|&i| predict(i)).collect();
+        let p = self.params;
+        let matches = max_score_matching(
+            open.len(),
+            towers.len(),
+            |r, c| {
+                let track = open[r];
+                let own = self.bindings.get(&track.track_id) == Some(&towers[c]);
+                let Some(pred) = predicted[c] else {
+                    return 0.0;
+                };
+                if map.towers[towers[c]].tower_type != track.tower_type || pred.height <= 0.0 {
+                    return 0.0;
                 }
+                match (self.distance(track, pred, image, true), own) {
+                    // A box with no evidence keeps its tower, unless a track
+                    // with evidence claims it.
+                    (None, true) => KEEP,
+                    (None, false) => 0.0,
+                    (Some(d), true) if d < p.release_gate => {
+                        (p.gate + p.switch_margin - d).max(KEEP)
+                    }
+                    (Some(_), true) => 0.0,
+                    (Some(d), false) => p.gate - d,
+                }
+            },
+            KEEP,
+        );
+        let mut proposal: HashMap<u64, usize> = HashMap::new();
+        for (r, c) in matches {
+            proposal.insert(open[r].track_id, towers[c]);
+        }
+        let mut moves = Vec::new();
+        for t in &open {
+            let Some(&bound) = self.bindings.get(&t.track_id) else {
+                continue;
             };
+            let wanted = proposal.get(&t.track_id).copied();
             let strikes = self.strikes.entry(t.track_id).or_insert(0);
-            *strikes = if off { *strikes + 1 } else { 0 };
-            if *strikes >= self.params.release_after {
-                self.bindings.remove(&t.track_id);
-                self.strikes.remove(&t.track_id);
+            *strikes = if wanted == Some(bound) {
+                0
+            } else {
+                *strikes + 1
+            };
+            if *strikes >= p.release_after {
+                moves.push((t.track_id, wanted));
+            }
+        }
+        for (track, wanted) in moves {
+            self.strikes.remove(&track);
+            self.bindings.remove(&track);
+            if let Some(tower) = wanted {
+                // Whoever holds the tower lets go; it is bound again below.
+                self.bindings.retain(|_, b| *b != tower);
+                self.bindings.insert(track, tower);
             }
         }
     }
@@ -293,7 +359,7 @@ impl Identity {
         &mut self,
         tracks: &[TrackOutput],
         near: &[usize],
-        predict: &dyn Fn(usize) -> Option<(f64, f64, f64)>,
+        predict: &dyn Fn(usize) -> Option<Prediction>,
         image: (f64, f64),
         map: &LandmarkMap,
         guess_trusted: bool,
@@ -311,8 +377,7 @@ impl Identity {
                 .copied()
                 .filter(|i| !taken.contains(i))
                 .collect();
-            let predicted: Vec<Option<(f64, f64, f64)>> =
-                free.iter().map(|&i| predict(i)).collect();
+            let predicted: Vec<Option<Prediction>> = free.iter().map(|&i| predict(i)).collect();
             let matches = max_score_matching(
                 unbound.len(),
                 free.len(),
@@ -321,7 +386,7 @@ impl Identity {
                     let Some(pred) = predicted[c] else {
                         return 0.0;
                     };
-                    if map.towers[free[c]].tower_type != track.tower_type || pred.1 <= 0.0 {
+                    if map.towers[free[c]].tower_type != track.tower_type || pred.height <= 0.0 {
                         return 0.0;
                     }
                     self.distance(track, pred, image, guess_trusted)
@@ -345,6 +410,15 @@ mod tests {
     use towernav_protocol::TowerType;
 
     fn map() -> LandmarkMap {
+        map_of(&[
+            ("A1", 100.0, 30.0),
+            ("A2", 100.0, -30.0),
+            ("A3", 300.0, 30.0),
+        ])
+    }
+
+    /// Type-A towers 30 m tall at `(id, x, y)`.
+    fn map_of(towers: &[(&str, f64, f64)]) -> LandmarkMap {
         let tower = |id: &str, x: f64, y: f64| MapTower {
             id: id.into(),
             tower_type: TowerType::A,
@@ -359,11 +433,7 @@ mod tests {
             height_m: 0.0,
         });
         LandmarkMap::new(
-            vec![
-                tower("A1", 100.0, 30.0),
-                tower("A2", 100.0, -30.0),
-                tower("A3", 300.0, 30.0),
-            ],
+            towers.iter().map(|&(id, x, y)| tower(id, x, y)).collect(),
             datum,
         )
     }
@@ -418,6 +488,89 @@ mod tests {
             || vec![0, 1, 2],
         );
         assert_eq!(bound, [Some(1), Some(0), Some(2)]);
+    }
+
+    /// The view from 20 m up, level, looking along +x.
+    fn pose_at_20m() -> Pose {
+        Pose {
+            position_in_world: Point3::new(0.0, 0.0, 20.0),
+            attitude: Attitude::level(0.0),
+        }
+    }
+
+    fn view<'a>(
+        pose: &'a Pose,
+        camera: &'a PinholeCamera,
+        map: &'a LandmarkMap,
+        trusted: bool,
+    ) -> View<'a> {
+        View {
+            guess: pose,
+            trusted,
+            camera,
+            map,
+        }
+    }
+
+    #[test]
+    fn two_tracks_bound_to_each_others_tower_in_a_row_are_put_right_together() {
+        // Two look-alike towers one behind the other on the same bearing: each
+        // fits the other's box but a little worse, so neither binding can be
+        // put right alone while the other still holds its tower.
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        let map = map_of(&[("A1", 200.0, 0.0), ("A2", 220.0, 0.0)]);
+        let tracks = [
+            observe(&pose, &camera, &map, 0, 7),
+            observe(&pose, &camera, &map, 1, 8),
+        ];
+        let mut identity = Identity::new(IdentityParams::default());
+        identity.bindings.insert(7, 1);
+        identity.bindings.insert(8, 0);
+        let mut bound = Vec::new();
+        for _ in 0..=IdentityParams::default().release_after {
+            bound = identity.update(&tracks, &[7, 8], view(&pose, &camera, &map, true), || {
+                vec![0, 1]
+            });
+        }
+        assert_eq!(bound, [Some(0), Some(1)]);
+    }
+
+    #[test]
+    fn a_near_tower_cut_at_the_foot_is_not_taken_for_a_far_one_on_its_bearing() {
+        // The near tower's foot is below the image: its box says nothing of
+        // its height but that the tower is at least as tall as what shows.
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        let map = map_of(&[("A1", 400.0, 0.0), ("A2", 40.0, 0.0)]);
+        let mut near = observe(&pose, &camera, &map, 1, 7);
+        let bottom = f64::from(camera.intrinsics.height);
+        assert!(
+            near.bbox.bottom > bottom,
+            "the near foot is out of the image"
+        );
+        near.bbox.bottom = bottom;
+        let far = observe(&pose, &camera, &map, 0, 7);
+        assert!((near.bbox.center_x() - far.bbox.center_x()).abs() < 1.0);
+        for trusted in [false, true] {
+            let mut identity = Identity::new(IdentityParams::default());
+            let bound = identity.update(
+                std::slice::from_ref(&near),
+                &[7],
+                view(&pose, &camera, &map, trusted),
+                || vec![0, 1],
+            );
+            assert_eq!(bound, [Some(1)], "trusted: {trusted}");
+            // A near tower the survey missed is left unbound, not given the far one.
+            let mut identity = Identity::new(IdentityParams::default());
+            let bound = identity.update(
+                std::slice::from_ref(&near),
+                &[7],
+                view(&pose, &camera, &map, trusted),
+                || vec![0],
+            );
+            assert_eq!(bound, [None], "trusted: {trusted}");
+        }
     }
 
     #[test]

@@ -1,7 +1,7 @@
-//! Tracking and identity targets on the paper's field and paths (oracle
-//! detector, quadrotor attitude): every bound track-frame on its true tower
-//! (at least 99.5 %), at most one ID on two towers (through each path's
-//! turn), and ours ahead of plain SORT.
+//! Tracking and identity targets (oracle detector, quadrotor attitude): on
+//! the paper's paths and on random fields, every bound track-frame on the
+//! tower its box lies on (at least 99.5 %); on the paper's paths, at most one
+//! ID on two towers (through each path's turn), and ours ahead of plain SORT.
 
 use towernav_core::LandmarkMap;
 use towernav_eval::cmd::tracking_eval::write_mot;
@@ -65,6 +65,22 @@ fn ours_binds_every_frame_to_the_right_tower_on_the_paper_paths() {
         assert!(
             text.lines().all(|l| l.split(',').count() == 10),
             "MOT columns"
+        );
+    }
+}
+
+/// Off the paper's paths: the two random fields `eval-tracking` flies, where
+/// towers stand in rows that the tracker swaps and near ones fill the frame.
+#[test]
+fn ours_binds_every_frame_to_the_right_tower_on_random_fields() {
+    let cases = towernav_eval::cmd::tracking_eval::cases(1).expect("scenarios");
+    for (name, scenario) in cases.iter().filter(|(n, _)| n.starts_with("random")) {
+        let map = LandmarkMap::from_records(&scenario.world.landmarks(), &scenario.world.datum);
+        let m = run(scenario, &map, Method::Ours, None).metrics;
+        assert!(
+            m.binding_accuracy >= 0.995,
+            "{name}: binding {:.4}",
+            m.binding_accuracy
         );
     }
 }

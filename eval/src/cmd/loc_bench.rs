@@ -15,12 +15,13 @@ use serde::Serialize;
 use towernav_core::landmarks::LandmarkMap;
 use towernav_core::localizer::Method;
 use towernav_core::pipeline::{Pipeline, PipelineConfig};
+use towernav_geometry::PixelBox;
 use towernav_onnx::{DetectorOptions, YoloDetector};
 use towernav_sim::world::WorldParams;
 use towernav_sim::{Barometer, BarometerParams, Conditions, Scenario, World};
 
 use crate::gnss_score::TWO_SIGMA_CHI2;
-use crate::mot_metrics::MotAccumulator;
+use crate::mot_metrics::{MotAccumulator, tower_under};
 use crate::progress::bar;
 use crate::sim_eval::error_stats;
 use crate::tracking_eval::{add_frame, pipeline_hypotheses};
@@ -339,22 +340,21 @@ fn horizontal_error(
     (d.norm(), nees, towernav_core::filter::horizontal_sigma(&c))
 }
 
-/// Bound tracks whose tower is not the one truth has under their box.
+/// Bound tracks whose box lies on another tower than their own.
 fn wrong_bindings(
     out: &towernav_core::pipeline::FrameOutput,
     truth: &towernav_sim::FrameTruth,
     map: &LandmarkMap,
 ) -> usize {
+    let boxes: Vec<(String, PixelBox)> = truth
+        .boxes
+        .iter()
+        .map(|b| (b.tower_id.clone(), b.bbox))
+        .collect();
     out.tracks
         .iter()
         .filter_map(|t| Some((t, &map.towers.get(t.tower?)?.id)))
-        .filter(|(t, id)| {
-            truth
-                .boxes
-                .iter()
-                .max_by(|a, b| a.bbox.iou(&t.bbox).total_cmp(&b.bbox.iou(&t.bbox)))
-                .is_some_and(|b| b.bbox.iou(&t.bbox) >= 0.3 && &&b.tower_id != id)
-        })
+        .filter(|(t, id)| tower_under(&boxes, &t.bbox).is_some_and(|under| under != *id))
         .count()
 }
 
