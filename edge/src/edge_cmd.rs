@@ -189,6 +189,7 @@ pub(crate) fn pipeline_for(
     // A model's boxes stray further than the oracle's (the pipeline's default).
     if config.detector.kind == DetectorKind::Yolo {
         pipeline_config.localizer.edge_sigma_px = config.detector.edge_sigma_px;
+        pipeline_config.localizer.edge_sigma_share = config.detector.edge_sigma_share;
     }
     if let Some(filter) = pipeline_config.filter.as_mut() {
         filter.max_report_sigma_m = config.pipeline.max_coast_sigma_m;

@@ -47,7 +47,8 @@ impl Usable {
     }
 }
 
-/// Spread of one box edge in the real image: grows for small boxes and low scores.
+/// Spread of one box edge in the real image: grows for small boxes, with
+/// the box's size for a learned detector, and for low scores.
 pub fn edge_sigma(o: &Observation<'_>, params: &LocalizerParams) -> f64 {
     let h = o.raw.height().max(1.0);
     let score = if o.score.is_finite() {
@@ -55,7 +56,8 @@ pub fn edge_sigma(o: &Observation<'_>, params: &LocalizerParams) -> f64 {
     } else {
         0.0
     };
-    params.edge_sigma_px * (1.0 + params.small_box_px / h) * (1.0 + 0.5 * (1.0 - score))
+    (params.edge_sigma_px * (1.0 + params.small_box_px / h) + params.edge_sigma_share * h)
+        * (1.0 + 0.5 * (1.0 - score))
 }
 
 /// The usable residuals of one observation at state (position, yaw); `out` is cleared first.

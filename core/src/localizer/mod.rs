@@ -58,6 +58,10 @@ pub struct LocalizerParams {
     pub edge_sigma_px: f64,
     /// Edges of small boxes are noisier: sigma = edge_sigma_px * (1 + small_box_px / h).
     pub small_box_px: f64,
+    /// A learned detector's edges stray in proportion to the box, as its
+    /// regression is trained on IoU: this share of the box height adds to
+    /// the spread (0 for the simulator's oracle, whose noise is in pixels).
+    pub edge_sigma_share: f64,
     /// Boxes shorter than this are not trusted by ours at all.
     pub min_box_height_px: f64,
     /// The paper trusted only large boxes; its method keeps its own threshold.
@@ -78,6 +82,7 @@ impl Default for LocalizerParams {
         Self {
             edge_sigma_px: 1.0,
             small_box_px: 40.0,
+            edge_sigma_share: 0.0,
             min_box_height_px: 8.0,
             paper_min_box_height_px: 20.0,
             yaw_sigma: 0.3f64.to_radians(),

@@ -737,16 +737,11 @@ mod tests {
         );
     }
 
-    /// Monte Carlo: with edge noise as the model states it, the normalised
-    /// estimation error squared averages the state dimension, within the
-    /// chi-square 95 % band for the number of runs.
-    #[test]
-    fn covariance_is_consistent_nees_within_chi_square_bounds() {
+    /// Monte Carlo: the mean normalised estimation error squared of fixes
+    /// over random poses, boxes drawn with the edge noise `noise` states and
+    /// fixed with `model`; and how many runs gave a fix.
+    fn mean_nees(model: &LocalizerParams, noise: &LocalizerParams) -> (f64, usize) {
         let camera = PinholeCamera::default_hd();
-        let params = LocalizerParams {
-            centre_width_share: 0.0,
-            ..LocalizerParams::default()
-        };
         let towers = field();
         let mut rng = ChaCha8Rng::seed_from_u64(42);
         let runs = 400;
@@ -765,7 +760,6 @@ mod tests {
                     rng.random_range(-0.2..0.2),
                 ),
             };
-            // The detector's noise is what the model assumes for these boxes.
             let boxes: Vec<(usize, PixelBox)> = towers
                 .iter()
                 .enumerate()
@@ -775,7 +769,7 @@ mod tests {
                 .iter()
                 .map(|&(i, b)| {
                     let probe = Observation::new(&towers[i], b, 1.0);
-                    let s = super::super::measurement::edge_sigma(&probe, &params);
+                    let s = super::super::measurement::edge_sigma(&probe, noise);
                     let mut n = || s * rng.sample::<f64, _>(StandardNormal);
                     let (dl, dt, dr, db) = (n(), n(), n(), n());
                     Observation::new(
@@ -789,8 +783,8 @@ mod tests {
                 continue;
             }
             let mut imu = pose.attitude;
-            imu.yaw += params.yaw_sigma * rng.sample::<f64, _>(StandardNormal);
-            let Some(fix) = robust_lbl(&obs, &camera, &imu, None, &params) else {
+            imu.yaw += model.yaw_sigma * rng.sample::<f64, _>(StandardNormal);
+            let Some(fix) = robust_lbl(&obs, &camera, &imu, None, model) else {
                 continue;
             };
             let f = fix.fix;
@@ -805,13 +799,49 @@ mod tests {
             total += nees;
             count += 1;
         }
+        (total / count.max(1) as f64, count)
+    }
+
+    /// With edge noise as the model states it, the mean NEES is the state
+    /// dimension, within the chi-square 95 % band for the number of runs.
+    fn assert_consistent(params: &LocalizerParams) {
+        let (mean, count) = mean_nees(params, params);
         assert!(count > 300, "{count} runs");
-        let mean = total / count as f64;
         // Mean of N chi-square(4) draws: 4 +/- 1.96 * sqrt(8 / N).
         let band = 1.96 * (8.0 / count as f64).sqrt();
         assert!(
             (mean - 4.0).abs() < band + 0.1,
             "mean NEES {mean:.3} outside 4 +/- {band:.3}"
+        );
+    }
+
+    #[test]
+    fn covariance_is_consistent_nees_within_chi_square_bounds() {
+        assert_consistent(&LocalizerParams {
+            centre_width_share: 0.0,
+            ..LocalizerParams::default()
+        });
+    }
+
+    /// A learned detector errs in proportion to the box: with that share in
+    /// the model the fix's covariance stays honest; without it the same boxes
+    /// give a fix that claims several times its real accuracy.
+    #[test]
+    fn edge_noise_in_proportion_to_the_box_is_carried_into_the_covariance() {
+        let learned = LocalizerParams {
+            centre_width_share: 0.0,
+            edge_sigma_share: 0.03,
+            ..LocalizerParams::default()
+        };
+        assert_consistent(&learned);
+        let unaware = LocalizerParams {
+            edge_sigma_share: 0.0,
+            ..learned
+        };
+        let (mean, _) = mean_nees(&unaware, &learned);
+        assert!(
+            mean > 20.0,
+            "mean NEES {mean:.2} when the share is left out"
         );
     }
 }

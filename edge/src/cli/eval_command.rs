@@ -88,6 +88,10 @@ pub enum EvalCommand {
         /// (default: the daemon's, `detector.edge_sigma_px`).
         #[arg(long)]
         edge_sigma_px: Option<f64>,
+        /// The share of the box height that adds to that spread for the YOLO
+        /// runs (default: the daemon's, `detector.edge_sigma_share`).
+        #[arg(long)]
+        edge_sigma_share: Option<f64>,
         /// Also fuse a velocity each frame, as a VIO or optical-flow
         /// estimator would send it: the truth's plus noise of this 1-sigma
         /// per axis, m/s.
@@ -129,6 +133,7 @@ impl EvalCommand {
                 seed,
                 oracle_only,
                 edge_sigma_px,
+                edge_sigma_share,
                 velocity_sigma,
                 no_barometer,
                 method,
@@ -150,6 +155,7 @@ impl EvalCommand {
                     seed: *seed,
                     model,
                     edge_sigma_px: Some(edge_sigma_px.unwrap_or(section.edge_sigma_px)),
+                    edge_sigma_share: Some(edge_sigma_share.unwrap_or(section.edge_sigma_share)),
                     velocity_sigma_mps: *velocity_sigma,
                     no_barometer: *no_barometer,
                     method,

@@ -303,12 +303,14 @@ pub struct DetectorSection {
     /// against the crop's reading, 0 to 1 (0: the classifier alone).
     pub detector_type_weight: f32,
     /// How far the model's box tops and bottoms are taken to stray from the
-    /// tower's, in pixels of the camera's frame: the localizer's measurement
-    /// noise with this detector. The shipped INT8 model's robust spread on
-    /// rendered turning flights is 3 to 4.6 px, but `bench-localization`
-    /// with 4 px raised the 2-sigma coverage from 45 to 68 % while the RMS
-    /// went from 13.3 to 18.6 m: the default stays at the oracle's 1 px.
+    /// tower's, in pixels of the camera's frame, for any box: the localizer's
+    /// measurement noise with this detector, with `edge_sigma_share`.
     pub edge_sigma_px: f64,
+    /// The share of each box's height that adds to `edge_sigma_px`: a
+    /// learned detector's edges stray in proportion to the box (the shipped
+    /// INT8 model's robust spread on rendered turning flights is about 2 px
+    /// on 50-80 px boxes and 5-7 px on 180-400 px ones).
+    pub edge_sigma_share: f64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -500,12 +502,16 @@ impl Default for DetectorSection {
             min_score: 0.25,
             detector_type_weight: towernav_core::detector::postprocess::DETECTOR_TYPE_WEIGHT,
             edge_sigma_px: YOLO_EDGE_SIGMA_PX,
+            edge_sigma_share: YOLO_EDGE_SIGMA_SHARE,
         }
     }
 }
 
 /// The box-edge spread the localizer assumes for a model, pixels (see `edge_sigma_px`).
 pub const YOLO_EDGE_SIGMA_PX: f64 = 1.0;
+
+/// The share of the box height that adds to it (see `edge_sigma_share`).
+pub const YOLO_EDGE_SIGMA_SHARE: f64 = 0.025;
 
 impl Default for PipelineSection {
     fn default() -> Self {
@@ -714,6 +720,13 @@ impl EdgeConfig {
             return invalid(
                 "detector.edge_sigma_px",
                 format!("{sigma} is not between 0.1 and 50 px"),
+            );
+        }
+        let share = self.detector.edge_sigma_share;
+        if !(share.is_finite() && (0.0..=0.5).contains(&share)) {
+            return invalid(
+                "detector.edge_sigma_share",
+                format!("{share} is not between 0 and 0.5"),
             );
         }
         if self.detector.threads == 0 || self.detector.threads > 64 {
@@ -1004,7 +1017,7 @@ mod tests {
         assert!(err.contains("fsp"), "{err}");
         let err = EdgeConfig::parse("[source]\nfps = \"fast\"\n").expect_err("type");
         assert!(err.contains("fps"), "{err}");
-        let cases: [(&str, &str); 11] = [
+        let cases: [(&str, &str); 13] = [
             (
                 "[source]\nkind = \"v4l2\"\npath = \"/dev/video0\"\nspeed = 2\n",
                 "source.speed",
@@ -1023,6 +1036,11 @@ mod tests {
                 "detector.detector_type_weight",
             ),
             ("[source]\nfps = 0\n", "source.fps"),
+            ("[detector]\nedge_sigma_px = 0\n", "detector.edge_sigma_px"),
+            (
+                "[detector]\nedge_sigma_share = -0.1\n",
+                "detector.edge_sigma_share",
+            ),
             (
                 "[source]\nkind = \"images\"\npath = \"x\"\n[detector]\nkind = \"oracle\"\n",
                 "detector.kind",

@@ -35,6 +35,9 @@ pub struct LocBenchOptions {
     /// The localizer's box-edge spread for the YOLO runs, pixels (`None`:
     /// the pipeline's default).
     pub edge_sigma_px: Option<f64>,
+    /// The share of the box height that adds to it for the YOLO runs
+    /// (`None`: the pipeline's default).
+    pub edge_sigma_share: Option<f64>,
     /// Also fuse a velocity, as a VIO or optical-flow estimator would give
     /// it: the truth's plus white noise of this 1-sigma per axis, m/s.
     pub velocity_sigma_mps: Option<f64>,
@@ -52,6 +55,8 @@ pub struct LocBenchOptions {
 pub struct FlyOptions {
     /// The localizer's box-edge spread, pixels (`None`: the pipeline's default).
     pub edge_sigma_px: Option<f64>,
+    /// The share of the box height that adds to it (`None`: the pipeline's default).
+    pub edge_sigma_share: Option<f64>,
     /// A simulated outside velocity's 1-sigma per axis, m/s (`None`: none).
     pub velocity_sigma_mps: Option<f64>,
     /// A simulated barometer; `None`: none.
@@ -189,6 +194,9 @@ pub fn fly(
     let mut config = PipelineConfig::new(scenario.camera, scenario.start_in_world());
     if let Some(sigma) = options.edge_sigma_px {
         config.localizer.edge_sigma_px = sigma;
+    }
+    if let Some(share) = options.edge_sigma_share {
+        config.localizer.edge_sigma_share = share;
     }
     config.method = options.method;
     let mut velocity_noise = ChaCha8Rng::seed_from_u64(scenario.seed ^ 0x005e_ed0f_u64);
@@ -380,6 +388,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
         let barometer = (!options.no_barometer).then(BarometerParams::default);
         let oracle = FlyOptions {
             edge_sigma_px: None,
+            edge_sigma_share: None,
             velocity_sigma_mps: options.velocity_sigma_mps,
             barometer,
             method: options.method,
@@ -394,6 +403,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
                 .map_or_else(|| "yolo".to_owned(), |n| n.to_string_lossy().into_owned());
             let yolo = FlyOptions {
                 edge_sigma_px: options.edge_sigma_px,
+                edge_sigma_share: options.edge_sigma_share,
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
                 method: options.method,
