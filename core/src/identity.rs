@@ -38,9 +38,11 @@ pub struct IdentityParams {
     pub trusted_log_size_sigma: f64,
     /// Gate on the normalised distance; farther candidates are never bound.
     pub gate: f64,
-    /// A bound track that stays this far outside the gate of its own tower for
-    /// `release_after` frames in a row (while the pose guess is trusted) is unbound,
-    /// so that a wrong early binding does not last the whole track.
+    /// A bound track this far outside the gate of its own tower (while the
+    /// pose guess is trusted) takes a strike, and one frame that agrees takes
+    /// one back: at `release_after` strikes it is moved or unbound, so that a
+    /// wrong early binding does not last the whole track, nor one whose
+    /// tracker box flickers between two towers.
     pub release_gate: f64,
     pub release_after: u32,
     /// Another tower must fit better by this much (normalised distance) to
@@ -84,7 +86,8 @@ pub struct Identity {
     bindings: HashMap<u64, usize>,
     /// track id -> operator's choice (None: keep unbound).
     pinned: HashMap<u64, Option<usize>>,
-    /// track id -> frames in a row its binding disagreed with a trusted pose.
+    /// track id -> frames its binding disagreed with a trusted pose, less
+    /// those it agreed since.
     strikes: HashMap<u64, u32>,
 }
 
@@ -140,8 +143,9 @@ impl Identity {
     }
 
     /// How sure the binding of a bound track is, 0..=1: 1 when pinned or in
-    /// agreement with the trusted pose, falling with each frame in a row it
-    /// disagrees, to 0 just before it is released. `None` when unbound.
+    /// agreement with the trusted pose, falling with each frame it disagrees
+    /// (and rising with each it agrees), to 0 just before it is released.
+    /// `None` when unbound.
     pub fn confidence(&self, track_id: u64) -> Option<f64> {
         self.bindings.get(&track_id)?;
         if self.is_pinned(track_id) {
@@ -264,8 +268,9 @@ impl Identity {
 
     /// With a trusted guess, all unpinned tracks are matched afresh to the
     /// nearby towers, each track's own tower favoured by the hysteresis margin.
-    /// A bound track the matching keeps moving elsewhere takes a strike; enough
-    /// strikes in a row move it to where the matching puts it (or unbind it).
+    /// A bound track the matching puts elsewhere takes a strike, and gives one
+    /// back when it is put on its own tower; enough strikes move it to where
+    /// the matching puts it (or unbind it).
     /// Matching jointly undoes swaps: two tracks each bound to the other's
     /// tower can only be put right together, never one by one.
     fn reassign(
@@ -334,7 +339,7 @@ impl Identity {
             let wanted = proposal.get(&t.track_id).copied();
             let strikes = self.strikes.entry(t.track_id).or_insert(0);
             *strikes = if wanted == Some(bound) {
-                0
+                strikes.saturating_sub(1)
             } else {
                 *strikes + 1
             };
