@@ -255,11 +255,16 @@ impl Identity {
             .iter()
             .filter(unpinned)
             .any(|t| guess_trusted || !self.bindings.contains_key(&t.track_id));
-        let near: Vec<usize> = if needed { candidates() } else { Vec::new() };
+        // Each nearby tower is projected once, for both steps.
+        let near: Vec<(usize, Option<Prediction>)> = if needed {
+            candidates().into_iter().map(|i| (i, predict(i))).collect()
+        } else {
+            Vec::new()
+        };
         if guess_trusted {
             self.reassign(tracks, &near, &predict, image, map);
         }
-        self.bind_unbound(tracks, &near, &predict, image, map, guess_trusted);
+        self.bind_unbound(tracks, &near, image, map, guess_trusted);
         tracks
             .iter()
             .map(|t| self.bindings.get(&t.track_id).copied())
@@ -276,7 +281,7 @@ impl Identity {
     fn reassign(
         &mut self,
         tracks: &[TrackOutput],
-        near: &[usize],
+        near: &[(usize, Option<Prediction>)],
         predict: &dyn Fn(usize) -> Option<Prediction>,
         image: (f64, f64),
         map: &LandmarkMap,
@@ -289,30 +294,27 @@ impl Identity {
             return;
         }
         let pinned_towers: Vec<usize> = self.pinned.values().flatten().copied().collect();
-        let mut towers: Vec<usize> = near.to_vec();
+        // The nearby towers and any bound one that is not among them.
+        let mut towers: Vec<(usize, Option<Prediction>)> = near.to_vec();
         for t in &open {
             if let Some(&b) = self.bindings.get(&t.track_id)
-                && !towers.contains(&b)
+                && !towers.iter().any(|&(i, _)| i == b)
             {
-                towers.push(b);
+                towers.push((b, predict(b)));
             }
         }
-        towers.retain(|i| !pinned_towers.contains(i));
-        // Predict each tower once, not once per track.
-        let predicted: Vec<Option<Prediction>> = towers.iter().map(|&i| predict(i)).collect();
+        towers.retain(|(i, _)| !pinned_towers.contains(i));
         let p = self.params;
         let matches = max_score_matching(
             open.len(),
             towers.len(),
             |r, c| {
                 let track = open[r];
-                let own = self.bindings.get(&track.track_id) == Some(&towers[c]);
-                let Some(pred) = predicted[c] else {
+                let (tower, predicted) = towers[c];
+                let own = self.bindings.get(&track.track_id) == Some(&tower);
+                let Some(pred) = comparable(track, tower, predicted, map) else {
                     return 0.0;
                 };
-                if map.towers[towers[c]].tower_type != track.tower_type || pred.height <= 0.0 {
-                    return 0.0;
-                }
                 match (self.distance(track, pred, image, true), own) {
                     // A box with no evidence keeps its tower, unless a track
                     // with evidence claims it.
@@ -329,7 +331,7 @@ impl Identity {
         );
         let mut proposal: HashMap<u64, usize> = HashMap::new();
         for (r, c) in matches {
-            proposal.insert(open[r].track_id, towers[c]);
+            proposal.insert(open[r].track_id, towers[c].0);
         }
         let mut moves = Vec::new();
         for t in &open {
@@ -363,8 +365,7 @@ impl Identity {
     fn bind_unbound(
         &mut self,
         tracks: &[TrackOutput],
-        near: &[usize],
-        predict: &dyn Fn(usize) -> Option<Prediction>,
+        near: &[(usize, Option<Prediction>)],
         image: (f64, f64),
         map: &LandmarkMap,
         guess_trusted: bool,
@@ -377,33 +378,41 @@ impl Identity {
             .collect();
         if !unbound.is_empty() {
             let taken: Vec<usize> = self.bindings.values().copied().collect();
-            let free: Vec<usize> = near
+            let free: Vec<(usize, Option<Prediction>)> = near
                 .iter()
                 .copied()
-                .filter(|i| !taken.contains(i))
+                .filter(|(i, _)| !taken.contains(i))
                 .collect();
-            let predicted: Vec<Option<Prediction>> = free.iter().map(|&i| predict(i)).collect();
             let matches = max_score_matching(
                 unbound.len(),
                 free.len(),
                 |r, c| {
                     let track = unbound[r];
-                    let Some(pred) = predicted[c] else {
+                    let (tower, predicted) = free[c];
+                    let Some(pred) = comparable(track, tower, predicted, map) else {
                         return 0.0;
                     };
-                    if map.towers[free[c]].tower_type != track.tower_type || pred.height <= 0.0 {
-                        return 0.0;
-                    }
                     self.distance(track, pred, image, guess_trusted)
                         .map_or(0.0, |d| self.params.gate - d)
                 },
                 f64::MIN_POSITIVE,
             );
             for (r, c) in matches {
-                self.bindings.insert(unbound[r].track_id, free[c]);
+                self.bindings.insert(unbound[r].track_id, free[c].0);
             }
         }
     }
+}
+
+/// A tower's prediction when the track could be it: the tower is of the
+/// track's type and stands upright in front of the camera.
+fn comparable(
+    track: &TrackOutput,
+    tower: usize,
+    predicted: Option<Prediction>,
+    map: &LandmarkMap,
+) -> Option<Prediction> {
+    predicted.filter(|p| map.towers[tower].tower_type == track.tower_type && p.height > 0.0)
 }
 
 #[cfg(test)]

@@ -93,6 +93,9 @@ pub struct BenchRow {
     /// detector's boxes against truth, for whole towers over 40 px matched
     /// at IoU 0.5, pixels.
     pub edge_error_px: Option<(f64, f64)>,
+    /// The same spread of each edge's error as a share of the true box's
+    /// height: what `detector.edge_sigma_share` stands for.
+    pub edge_error_share: Option<(f64, f64)>,
     /// Every frame, for a closer look (written as CSV, not in the JSON).
     #[serde(skip)]
     pub per_frame: Vec<FrameRow>,
@@ -210,6 +213,7 @@ pub fn fly(
     let mut previous_truth: Option<(f64, nalgebra::Point3<f64>)> = None;
     let mut pipeline = Pipeline::new(config, map.clone());
     let (mut tops, mut bottoms) = (Vec::new(), Vec::new());
+    let (mut top_shares, mut bottom_shares) = (Vec::new(), Vec::new());
     // (frames with a tower in view, of them with a fix), level and banked.
     let (mut level, mut banked) = ((0usize, 0usize), (0usize, 0usize));
     let renderer = detector.as_ref().map(|_| scenario.renderer());
@@ -234,8 +238,11 @@ pub fn fly(
                 .filter(|t| !t.truncated && t.bbox.height() > 40.0)
             {
                 if let Some(d) = frame.detections.iter().find(|d| d.bbox.iou(&t.bbox) >= 0.5) {
-                    tops.push(d.bbox.top - t.bbox.top);
-                    bottoms.push(d.bbox.bottom - t.bbox.bottom);
+                    let (top, bottom) = (d.bbox.top - t.bbox.top, d.bbox.bottom - t.bbox.bottom);
+                    tops.push(top);
+                    bottoms.push(bottom);
+                    top_shares.push(top / t.bbox.height());
+                    bottom_shares.push(bottom / t.bbox.height());
                 }
             }
         }
@@ -331,6 +338,7 @@ pub fn fly(
         fix_rate_level: (level.0, level.1 as f64 / level.0.max(1) as f64),
         fix_rate_banked: (banked.0, banked.1 as f64 / banked.0.max(1) as f64),
         edge_error_px: robust_sigma(&mut tops).zip(robust_sigma(&mut bottoms)),
+        edge_error_share: robust_sigma(&mut top_shares).zip(robust_sigma(&mut bottom_shares)),
         per_frame,
     })
 }
@@ -496,6 +504,7 @@ fn pooled<'a>(rows: impl Iterator<Item = &'a BenchRow>) -> BenchRow {
         fix_rate_level: pool_rate(rows.iter().map(|r| r.fix_rate_level)),
         fix_rate_banked: pool_rate(rows.iter().map(|r| r.fix_rate_banked)),
         edge_error_px: None,
+        edge_error_share: None,
         per_frame: Vec::new(),
     }
 }
@@ -515,10 +524,15 @@ pub fn write_all(options: &LocBenchOptions, out: &Path) -> anyhow::Result<()> {
         table(&rows)
     );
     for r in &rows {
-        if let Some((top, bottom)) = r.edge_error_px {
+        if let (Some((top, bottom)), Some((top_share, bottom_share))) =
+            (r.edge_error_px, r.edge_error_share)
+        {
             println!(
-                "world {} {}: box edges against truth (whole towers over 40 px), robust sigma top {top:.2} px, bottom {bottom:.2} px",
-                r.world_seed, r.detector
+                "world {} {}: box edges against truth (whole towers over 40 px), robust sigma top {top:.2} px, bottom {bottom:.2} px; as a share of the box height top {:.1} %, bottom {:.1} %",
+                r.world_seed,
+                r.detector,
+                100.0 * top_share,
+                100.0 * bottom_share
             );
         }
     }
