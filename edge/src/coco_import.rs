@@ -6,6 +6,7 @@
 use std::collections::HashMap;
 
 use serde::Deserialize;
+use towernav_dataset::YoloLabel;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CocoError {
@@ -107,13 +108,14 @@ pub fn yolo_from_coco(text: &str, what: &str) -> Result<YoloLabels, CocoError> {
             .ok_or_else(|| unknown("category", a.category_id))?;
         let [x, y, w, h] = a.bbox;
         let line = lines.entry(a.image_id).or_default();
-        line.push_str(&format!(
-            "{class} {:.6} {:.6} {:.6} {:.6}\n",
-            (x + w / 2.0) / image.width,
-            (y + h / 2.0) / image.height,
-            w / image.width,
-            h / image.height
-        ));
+        let label = YoloLabel {
+            class: *class,
+            cx: (x + w / 2.0) / image.width,
+            cy: (y + h / 2.0) / image.height,
+            w: w / image.width,
+            h: h / image.height,
+        };
+        line.push_str(&format!("{label}\n"));
     }
     let files = coco
         .images

@@ -18,6 +18,7 @@ use towernav_core::survey_labels::{
     Dropped, LabelCamera, LabelParams, SurveyTower, TowerLabel, WIDTH_PER_HEIGHT, project_labels,
     snap,
 };
+use towernav_dataset::YoloLabel;
 use towernav_flightlog::GnssSample;
 use towernav_geometry::{Datum, Geodetic, PinholeCamera, PixelBox, Pose};
 use towernav_protocol::LandmarkRecord;
@@ -361,14 +362,7 @@ impl DatasetWriter {
                     .position(|c| *c == towers[l.tower].tower_type.to_string())
                     .unwrap_or(0),
             };
-            let _ = writeln!(
-                text,
-                "{class} {:.6} {:.6} {:.6} {:.6}",
-                b.center_x() / w,
-                b.center_y() / h,
-                b.width() / w,
-                b.height() / h
-            );
+            let _ = writeln!(text, "{}", YoloLabel::from_pixels(class, &b, w, h));
             self.coco_annotations.push(serde_json::json!({
                 "id": self.coco_annotations.len() + 1,
                 "image_id": image_id,

@@ -3,7 +3,7 @@
 //! IDF1 (`mot_metrics`, `tracking_eval`), localization error (`loc_eval`,
 //! `sim_eval`), the demo's report (`report`) and its scoring of the daemon's
 //! outputs against truth (`truth_scorer`); the detector on real labelled
-//! photographs and tower-free frames (`image_folder`, `real_score`); a
+//! photographs and tower-free frames (`real_score`, over `towernav_dataset`'s folders); a
 //! replayed real flight against its log's GNSS (`gnss_score`); `cmd` holds the eval commands
 //! with their tables, files and plots.
 
@@ -12,7 +12,6 @@ pub mod cmd;
 pub mod confusion;
 pub mod gnss_score;
 pub mod hota;
-pub mod image_folder;
 pub mod loc_eval;
 pub mod map_eval;
 pub mod mot_metrics;

@@ -1,5 +1,6 @@
 //! The operator's window: the fleet on the left; the map with the selected
-//! UAV's camera, the landmark editor, or the edit history in the middle.
+//! UAV's camera, the landmark editor, the edit history, or a labelled
+//! dataset under review in the middle.
 //!
 //! The app owns the landmark database: its edits are transactions on the
 //! same file the landmark service tails, so they go live to the edges.
@@ -18,6 +19,7 @@ use crate::corrections::Corrections;
 use crate::events::NetEvent;
 use crate::fleet::Fleet;
 use crate::fleet_panel;
+use crate::label_review_view::{self, ReviewView};
 use crate::landmark_editor::{self, EditorAction, EditorState, FileFormat};
 use crate::map_view::{self, MapState, MapTower};
 use crate::net::{NetCommand, NetLink};
@@ -46,6 +48,7 @@ pub enum Tab {
     Map,
     Landmarks,
     History,
+    Labels,
 }
 
 /// How the app was started.
@@ -60,6 +63,8 @@ pub struct GsOptions {
     pub tiles: Option<PathBuf>,
     /// Set when the app shows a recording instead of live traffic.
     pub replaying: Option<PathBuf>,
+    /// A labelled dataset to open in the Labels tab.
+    pub labels: Option<PathBuf>,
 }
 
 impl Default for GsOptions {
@@ -70,6 +75,7 @@ impl Default for GsOptions {
             first_request_id: 1,
             tiles: None,
             replaying: None,
+            labels: None,
         }
     }
 }
@@ -90,6 +96,7 @@ pub struct GsApp {
     map: MapState,
     camera: CameraState,
     editor: EditorState,
+    labels: ReviewView,
     /// A Record was asked for and the network side has not answered yet.
     record_waiting: bool,
     record_path: String,
@@ -132,12 +139,16 @@ impl GsApp {
             map: MapState::default(),
             camera: CameraState::default(),
             editor: EditorState::default(),
+            labels: ReviewView::default(),
             record_waiting: false,
             record_path: "session.mcap".into(),
             replay: None,
             options,
         };
         app.reload_landmarks()?;
+        if let Some(dir) = app.options.labels.clone() {
+            app.labels.open(&dir);
+        }
         Ok(app)
     }
 
@@ -263,6 +274,9 @@ impl GsApp {
                 egui::CentralPanel::default()
                     .show(ui, |ui| landmark_editor::history(ui, &self.history));
             }
+            Tab::Labels => {
+                label_review_view::show(ui, &mut self.labels);
+            }
         }
     }
 
@@ -271,6 +285,7 @@ impl GsApp {
             ui.selectable_value(&mut self.tab, Tab::Map, "Map");
             ui.selectable_value(&mut self.tab, Tab::Landmarks, "Landmarks");
             ui.selectable_value(&mut self.tab, Tab::History, "History");
+            ui.selectable_value(&mut self.tab, Tab::Labels, "Labels");
             ui.separator();
             if let Some(player) = self.replay.as_mut() {
                 let name = self

@@ -11,6 +11,8 @@ pub mod events;
 pub mod file_browser;
 pub mod fleet;
 pub mod fleet_panel;
+pub mod label_review;
+pub mod label_review_view;
 pub mod landmark_editor;
 pub mod landmark_service;
 pub mod map_view;

@@ -53,9 +53,13 @@ struct Cli {
     /// Replay speed (1 = as recorded, 0 = as fast as possible).
     #[arg(long, default_value_t = 1.0)]
     replay_speed: f64,
-    /// The tab the window opens on.
-    #[arg(long, default_value = "map", value_parser = ["map", "landmarks", "history"])]
-    tab: String,
+    /// The tab the window opens on (with --labels, the Labels tab).
+    #[arg(long, value_parser = ["map", "landmarks", "history", "labels"])]
+    tab: Option<String>,
+    /// Review a labelled dataset (`towernav-edge label`'s output folder, or
+    /// images/ with labels/): accept, reject and move its boxes, frame by frame.
+    #[arg(long)]
+    labels: Option<PathBuf>,
     /// Close the window after this many seconds (screenshots, benchmarks).
     #[arg(long)]
     quit_after_s: Option<f64>,
@@ -111,7 +115,14 @@ fn main() -> anyhow::Result<()> {
     let db_path = cli.db.clone();
     let start = Instant::now();
     let continuous = cli.continuous;
-    let tab = cli.tab.clone();
+    let tab = cli.tab.clone().unwrap_or_else(|| {
+        if cli.labels.is_some() {
+            "labels"
+        } else {
+            "map"
+        }
+        .into()
+    });
     let mut exit = Exit {
         quit_after_s: cli.quit_after_s,
         screenshot: cli.screenshot.clone(),
@@ -148,6 +159,7 @@ fn main() -> anyhow::Result<()> {
             app.tab = match tab.as_str() {
                 "landmarks" => Tab::Landmarks,
                 "history" => Tab::History,
+                "labels" => Tab::Labels,
                 _ => Tab::Map,
             };
             Ok(Box::new(FnApp(move |ui: &mut egui::Ui| {
@@ -224,6 +236,7 @@ fn gs_options(cli: &Cli) -> GsOptions {
         first_request_id,
         tiles: cli.tiles.clone(),
         replaying: cli.replay.clone(),
+        labels: cli.labels.clone(),
     }
 }
 

@@ -339,8 +339,8 @@ fn real_photos() -> Option<PathBuf> {
 /// the test says so and passes.
 #[test]
 fn the_shipped_model_boxes_almost_nothing_on_real_tower_free_frames() {
+    use towernav_dataset::images_under;
     use towernav_eval::cmd::real_eval::load_upright;
-    use towernav_eval::image_folder::images_under;
     let Some(real) = real_photos() else { return };
     let mut detector = shipped_detector();
     let paths = images_under(&real.join("pld_uav_negatives/PLDM")).expect("the frames");
@@ -374,8 +374,8 @@ fn the_shipped_model_boxes_almost_nothing_on_real_tower_free_frames() {
 #[test]
 #[ignore = "the shipped detector, trained on rendered side views, finds none of the real lattice towers seen from above at score 0.25 (norway_uav: lattice mAP50 0.07); run with --ignored"]
 fn the_shipped_model_finds_the_lattice_towers_of_real_photographs() {
+    use towernav_dataset::ImageFolder;
     use towernav_eval::cmd::real_eval::load_upright;
-    use towernav_eval::image_folder::ImageFolder;
     let Some(real) = real_photos() else { return };
     let mut detector = shipped_detector();
     let names: Vec<String> = ["tower_lattice", "tower_tucohy", "tower_wooden"]

@@ -10,12 +10,12 @@ use image::{DynamicImage, ImageDecoder, ImageReader};
 use serde::Serialize;
 use towernav_onnx::yolo::{DetectorOptions, YoloDetector};
 
-use crate::image_folder::{ImageFolder, images_under};
 use crate::map_eval::{Labelled, Scored};
 use crate::progress::bar;
 use crate::real_score::{
     FolderScore, NegativeScore, Row, ScoredImage, score_folder, score_negatives,
 };
+use towernav_dataset::{ImageFolder, images_under};
 
 #[derive(Debug, Clone, Default)]
 pub struct RealEvalOptions {

@@ -29,11 +29,41 @@ impl YoloLabel {
             bottom: (self.cy + self.h / 2.0) * height,
         }
     }
+
+    /// The label of pixel box `b` in a `width` x `height` image.
+    pub fn from_pixels(
+        class: usize,
+        b: &towernav_geometry::PixelBox,
+        width: f64,
+        height: f64,
+    ) -> Self {
+        Self {
+            class,
+            cx: b.center_x() / width,
+            cy: b.center_y() / height,
+            w: b.width() / width,
+            h: b.height() / height,
+        }
+    }
+}
+
+/// One line of a label file, without its newline; six decimals, as
+/// Ultralytics writes them (a tenth of a pixel at 4K).
+impl std::fmt::Display for YoloLabel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} {:.6} {:.6} {:.6} {:.6}",
+            self.class, self.cx, self.cy, self.w, self.h
+        )
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct LabelledImage {
     pub image: PathBuf,
+    /// Where its labels are (or would be: an image with no tower may have no file).
+    pub label_path: PathBuf,
     pub labels: Vec<YoloLabel>,
 }
 
@@ -299,7 +329,11 @@ impl ImageFolder {
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
                 Err(e) => return Err(io(&label)(e)),
             };
-            images.push(LabelledImage { image, labels });
+            images.push(LabelledImage {
+                image,
+                label_path: label,
+                labels,
+            });
         }
         let classes = images
             .iter()
@@ -321,7 +355,7 @@ impl ImageFolder {
 }
 
 /// Ultralytics' rule: the labels of `.../images/<x>` are in `.../labels/<x>`.
-fn labels_for(images: &Path) -> PathBuf {
+pub fn labels_for(images: &Path) -> PathBuf {
     let parts: Vec<_> = images.components().collect();
     match parts.iter().rposition(|c| c.as_os_str() == "images") {
         Some(i) => {
