@@ -209,6 +209,10 @@ fn box_list(ui: &mut egui::Ui, view: &mut ReviewView) {
         return;
     }
     ui.label(format!("{} boxes", f.boxes.len()));
+    ui.small(
+        "Keys: A accept, R reject the picked box; Enter accepts the rest and goes on; \
+         arrows step. Drag an edge or corner to resize, inside to move, on open image to draw.",
+    );
     let rows: Vec<(String, Verdict)> = f
         .boxes
         .iter()
