@@ -224,6 +224,10 @@ impl GsApp {
             self.fleet.apply(event, now_s);
         }
         self.fleet.corrections.expire(now_s);
+        // A frame under review is not lost with the window.
+        if ui.input(|i| i.viewport().close_requested()) {
+            self.labels.save();
+        }
         if self.selected.is_none() {
             self.selected = self.fleet.uavs.keys().next().cloned();
         }

@@ -48,8 +48,10 @@ pub struct ReviewView {
 }
 
 impl ReviewView {
-    /// Opens the dataset at `dir`; a folder that is not one is said, not fatal.
+    /// Opens the dataset at `dir`, after writing what was changed in the one
+    /// open; a folder that is not one is said, not fatal.
     pub fn open(&mut self, dir: &Path) {
+        self.save();
         self.folder = dir.display().to_string();
         match LabelReview::open(dir) {
             Ok(review) => {
@@ -65,6 +67,15 @@ impl ReviewView {
                 self.texture = None;
             }
             Err(e) => self.message = Some(format!("not opened: {e}")),
+        }
+    }
+
+    /// Writes the frame on show if it was changed: before another folder
+    /// opens, and when the window closes.
+    pub fn save(&mut self) {
+        if let Some(review) = self.review.as_mut() {
+            let r = review.save().map(|_| ());
+            self.result(r);
         }
     }
 

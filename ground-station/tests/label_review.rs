@@ -176,6 +176,29 @@ fn harness_again(dir: &Path) -> Harness<'static, GsApp> {
 }
 
 #[test]
+fn a_changed_frame_is_written_before_another_folder_opens() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (one, two) = (tmp.path().join("one"), tmp.path().join("two"));
+    dataset(&one);
+    dataset(&two);
+    let mut harness = harness(app(&one));
+    harness.get_by_label("Reject box 1").click();
+    harness.run();
+    harness
+        .get_by_role_and_label(egui::Role::TextInput, "Dataset folder")
+        .focus();
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    harness.run();
+    harness.event(egui::Event::Text(two.display().to_string()));
+    harness.run();
+    harness.get_by_label("Open").click();
+    harness.run();
+    harness.get_by_label_contains(&format!("{}: 2 frames", two.display()));
+    assert_eq!(labels(&one, "frame_000005").len(), 1);
+    assert_eq!(labels(&two, "frame_000005").len(), 2);
+}
+
+#[test]
 fn a_folder_that_is_no_dataset_is_named_and_nothing_is_written() {
     let tmp = tempfile::tempdir().unwrap();
     let harness = harness(app(tmp.path()));
