@@ -108,15 +108,16 @@ fn project(
         &(camera_from_world * (t.foot_in_world + Vector3::new(0.0, 0.0, t.height_m / 2.0))),
     )?;
     let half = t.width_m / 2.0;
-    let mut b: Option<PixelBox> = None;
+    let (mut left, mut right) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut top, mut bottom) = (f64::INFINITY, f64::NEG_INFINITY);
     let mut depth: f64 = f64::INFINITY;
     for z in [0.0, t.height_m] {
         for (dx, dy) in [
+            (0.0, 0.0),
             (-half, -half),
             (half, -half),
             (-half, half),
             (half, half),
-            (0.0, 0.0),
         ] {
             let p = camera_from_world * (t.foot_in_world + Vector3::new(dx, dy, z));
             if p.z <= 0.5 {
@@ -124,11 +125,18 @@ fn project(
             }
             depth = depth.min(p.z);
             let px = ideal.project(&p)?;
-            let corner = PixelBox::new(px.x, px.y, px.x, px.y);
-            b = Some(b.map_or(corner, |b| b.union(&corner)));
+            left = left.min(px.x);
+            right = right.max(px.x);
+            // The convention's top and foot are the axis's: the footprint's
+            // near corners sit lower in the image than the foot, by about a
+            // tenth of the box for a near tower seen from above.
+            if dx == 0.0 && dy == 0.0 {
+                top = top.min(px.y);
+                bottom = bottom.max(px.y);
+            }
         }
     }
-    Some((b?, depth, middle))
+    Some((PixelBox::new(left, top, right, bottom), depth, middle))
 }
 
 /// A camera as the labeller uses it: with the part of the ideal image its
@@ -407,14 +415,22 @@ mod tests {
         let of = |id: &str| labels.iter().find(|l| towers[l.tower].id == id);
         let ahead = of("ahead").expect("labelled");
         assert!(ahead.dropped.is_none());
-        // Foot 30 m below the camera at 100 m, top level with it.
+        // The convention's foot and top, on the tower's axis: the foot 30 m
+        // below the camera at 100 m, the top level with it. Not the
+        // footprint's near corners, 5 m nearer and 15 px lower.
         let f = camera.intrinsics.fy;
         let cy = camera.intrinsics.cy;
         assert!(
-            (ahead.projected.bottom - (cy + f * 30.0 / 95.0)).abs() < 25.0,
+            (ahead.projected.bottom - (cy + f * 30.0 / 100.0)).abs() < 0.5,
             "{ahead:?}"
         );
-        assert!((ahead.projected.top - cy).abs() < 25.0, "{ahead:?}");
+        assert!((ahead.projected.top - cy).abs() < 0.5, "{ahead:?}");
+        // As wide as the footprint's nearest corners.
+        let half_width = f * 5.0 / 95.0;
+        assert!(
+            (ahead.projected.width() - 2.0 * half_width).abs() < 0.5,
+            "{ahead:?}"
+        );
         assert!(of("behind").is_none(), "behind the camera: not projected");
         assert!(matches!(
             of("far").and_then(|l| l.dropped),
