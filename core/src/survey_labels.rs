@@ -72,7 +72,8 @@ pub struct TowerLabel {
     /// Projected from the pose, clipped to the frame.
     pub projected: PixelBox,
     pub distance_m: f64,
-    /// The detector's box it was snapped to, and their IoU.
+    /// The box snapped to the detector's (its place and width, the
+    /// projection's height), and its IoU with the projection.
     pub snapped: Option<(PixelBox, f64)>,
     /// Not snapped: the projection moved by the frame's median offset
     /// between the snapped labels and their projections (the pose error
@@ -82,7 +83,7 @@ pub struct TowerLabel {
 }
 
 impl TowerLabel {
-    /// The box to write: the detector's where it agreed, else the projection.
+    /// The box to write: snapped where a detector's box agreed, else the projection.
     pub fn label(&self) -> Option<PixelBox> {
         match (self.dropped, self.snapped) {
             (Some(_), _) => None,
@@ -313,11 +314,11 @@ pub fn snap(
         let shape =
             PixelBox::new(p.left + dx, p.top + dy, p.right + dx, p.bottom + dy).iou(&detections[c]);
         if shape >= params.snap_iou {
-            labels[kept[r]].snapped = Some((detections[c], p.iou(&detections[c])));
+            let b = snapped_box(&p, &detections[c], (width, height));
+            labels[kept[r]].snapped = Some((b, p.iou(&b)));
         }
     }
     shift_the_rest(labels);
-    const EDGE_PX: f64 = 2.0;
     for l in labels
         .iter_mut()
         .filter(|l| l.dropped.is_none() && l.snapped.is_none())
@@ -331,6 +332,32 @@ pub fn snap(
             l.dropped = Some(Dropped::Unconfirmed);
         }
     }
+}
+
+/// A label's box within this many pixels of the frame's edge may be cut by it.
+const EDGE_PX: f64 = 2.0;
+
+/// The box a snapped label writes: the detector's across, and the
+/// projection's height centred where the detector put the tower. A pose
+/// error moves a projection by tens of pixels but scales it by a percent
+/// or two (1.5 m of GNSS error 100 m off), while a detector's top and foot
+/// each err by a few percent of the box: the projection's height is the
+/// better of the two. Where the frame cuts either box, the detector's whole.
+fn snapped_box(projected: &PixelBox, detected: &PixelBox, (width, height): (f64, f64)) -> PixelBox {
+    let whole = |b: &PixelBox| b.top > EDGE_PX && b.bottom < height - EDGE_PX;
+    if !whole(projected) || !whole(detected) {
+        return *detected;
+    }
+    let (cy, half) = (detected.center_y(), projected.height() / 2.0);
+    if cy - half <= 0.0 || cy + half >= height {
+        return *detected;
+    }
+    PixelBox::new(
+        detected.left.max(0.0),
+        cy - half,
+        detected.right.min(width),
+        cy + half,
+    )
 }
 
 /// Moves the unsnapped labels by the median offset of the snapped ones.
@@ -466,7 +493,14 @@ mod tests {
             &LabelParams::default(),
             (1280.0, 720.0),
         );
-        assert_eq!(labels[ahead].label(), Some(detected));
+        // The detector's box across and where it is; the projection's height.
+        let written = labels[ahead].label().expect("kept");
+        assert_eq!(
+            (written.left, written.right),
+            (detected.left, detected.right)
+        );
+        assert!((written.center_y() - detected.center_y()).abs() < 1e-9);
+        assert!((written.height() - p.height()).abs() < 1e-9, "{written:?}");
         let left = labels.iter().find(|l| l.tower == 1).expect("left");
         assert!(left.snapped.is_none(), "no detector box agrees");
         // It moves with the frame's offset: the snapped label's centre shift.
