@@ -13,26 +13,36 @@ pub fn format_labels(labels: &[YoloLabel]) -> String {
     labels.iter().map(|l| format!("{l}\n")).collect()
 }
 
-/// Writes `labels` to `path` whole or not at all, so a crash or a full disk
-/// never leaves a half-written file that training would read as fewer towers.
+/// Writes `labels` to `path` through a temporary file in the same folder and
+/// a rename, so a crash or a full disk never leaves a half-written file that
+/// training would read as fewer towers.
 pub fn write_labels(path: &Path, labels: &[YoloLabel]) -> Result<(), FolderError> {
-    write_atomically(path, format_labels(labels).as_bytes())
-}
-
-/// Replaces `path` with `bytes` through a temporary file in the same folder
-/// and a rename.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), FolderError> {
     let io = |source| FolderError::Io {
         path: path.to_path_buf(),
         source,
     };
     let dir = path.parent().unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir).map_err(io)?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-    tmp.write_all(bytes).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
+    let mut tmp = tempfile_in(dir, path).map_err(io)?;
+    let result = (|| {
+        tmp.1.write_all(format_labels(labels).as_bytes())?;
+        tmp.1.sync_all()?;
+        std::fs::rename(&tmp.0, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp.0);
+    }
+    result.map_err(io)
+}
+
+/// A new file beside `path`, named after it and this process.
+fn tempfile_in(dir: &Path, path: &Path) -> std::io::Result<(std::path::PathBuf, std::fs::File)> {
+    let name = path
+        .file_name()
+        .map_or_else(|| "labels".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let file = std::fs::File::create(&tmp)?;
+    Ok((tmp, file))
 }
 
 #[cfg(test)]

@@ -11,4 +11,4 @@ pub use folder::{
     DataYaml, FolderError, ImageFolder, LabelledImage, YoloLabel, images_under, labels_for,
     parse_data_yaml, parse_labels,
 };
-pub use label_file::{format_labels, write_atomically, write_labels};
+pub use label_file::{format_labels, write_labels};

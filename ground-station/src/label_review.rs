@@ -13,7 +13,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use towernav_dataset::{FolderError, ImageFolder, YoloLabel, write_atomically, write_labels};
+use towernav_dataset::{FolderError, ImageFolder, YoloLabel, write_labels};
 use towernav_geometry::PixelBox;
 
 /// The smallest box a drag leaves, pixels a side.
@@ -363,10 +363,11 @@ impl LabelReview {
         let name = f.name();
         let counts = f.counts();
         self.log.insert(name, counts);
-        write_atomically(
-            &self.dir.join("review.csv"),
-            format_log(&self.log).as_bytes(),
-        )?;
+        let path = self.dir.join("review.csv");
+        let tmp = self.dir.join(".review.csv.tmp");
+        std::fs::write(&tmp, format_log(&self.log))
+            .and_then(|()| std::fs::rename(&tmp, &path))
+            .map_err(|source| ReviewError::Io { path, source })?;
         Ok(true)
     }
 
