@@ -190,6 +190,7 @@ pub(crate) fn pipeline_for(
     if config.detector.kind == DetectorKind::Yolo {
         pipeline_config.localizer.edge_sigma_px = config.detector.edge_sigma_px;
         pipeline_config.localizer.edge_sigma_share = config.detector.edge_sigma_share;
+        pipeline_config.localizer.cut_margin_share = config.detector.cut_margin_share;
     }
     if let Some(filter) = pipeline_config.filter.as_mut() {
         filter.max_report_sigma_m = config.pipeline.max_coast_sigma_m;

@@ -21,7 +21,13 @@ impl Cut {
     /// The sides of `b` within [`EDGE_MARGIN_PX`] of the border of an image of
     /// `width` by `height` pixels.
     pub fn in_image(b: &PixelBox, width: f64, height: f64) -> Self {
-        let m = EDGE_MARGIN_PX;
+        Self::within(b, width, height, EDGE_MARGIN_PX)
+    }
+
+    /// The sides of `b` within `margin` pixels of the border of an image of
+    /// `width` by `height` pixels.
+    pub fn within(b: &PixelBox, width: f64, height: f64, margin: f64) -> Self {
+        let m = margin;
         Self {
             left: b.left <= m,
             top: b.top <= m,
@@ -33,6 +39,11 @@ impl Cut {
     /// [`Self::in_image`] for the image `k` describes.
     pub fn in_frame(b: &PixelBox, k: &Intrinsics) -> Self {
         Self::in_image(b, f64::from(k.width), f64::from(k.height))
+    }
+
+    /// [`Self::within`] for the image `k` describes.
+    pub fn in_frame_within(b: &PixelBox, k: &Intrinsics, margin: f64) -> Self {
+        Self::within(b, f64::from(k.width), f64::from(k.height), margin)
     }
 
     /// The image cuts the box somewhere.

@@ -11,7 +11,7 @@
 //! folded in with them, so the same code serves any attitude.
 
 use nalgebra::{Point3, RowVector4};
-use towernav_geometry::{Cut, FrameCamera, Intrinsics, Projected};
+use towernav_geometry::{Cut, EDGE_MARGIN_PX, FrameCamera, Intrinsics, Projected};
 
 use super::{LocalizerParams, Observation};
 
@@ -33,8 +33,9 @@ pub struct Usable {
 }
 
 impl Usable {
-    pub fn of(o: &Observation<'_>, k: &Intrinsics) -> Self {
-        let cut = Cut::in_frame(&o.raw, k);
+    pub fn of(o: &Observation<'_>, k: &Intrinsics, params: &LocalizerParams) -> Self {
+        let margin = EDGE_MARGIN_PX.max(params.cut_margin_share * o.raw.height());
+        let cut = Cut::in_frame_within(&o.raw, k, margin);
         Self {
             centre: !cut.side(),
             top: !cut.top,

@@ -62,6 +62,12 @@ pub struct LocalizerParams {
     /// regression is trained on IoU: this share of the box height adds to
     /// the spread (0 for the simulator's oracle, whose noise is in pixels).
     pub edge_sigma_share: f64,
+    /// A learned detector seldom carries a box to the image's edge when the
+    /// frame cuts a near tower: it stops tens of pixels short, where a foot,
+    /// top or side would be. A side of the box within this share of its
+    /// height of the border is taken as cut (0 for the simulator's oracle, whose cut boxes
+    /// end at the border; [`towernav_geometry::EDGE_MARGIN_PX`] at least).
+    pub cut_margin_share: f64,
     /// Boxes shorter than this are not trusted by ours at all.
     pub min_box_height_px: f64,
     /// The paper trusted only large boxes; its method keeps its own threshold.
@@ -83,6 +89,7 @@ impl Default for LocalizerParams {
             edge_sigma_px: 1.0,
             small_box_px: 40.0,
             edge_sigma_share: 0.0,
+            cut_margin_share: 0.0,
             min_box_height_px: 8.0,
             paper_min_box_height_px: 20.0,
             yaw_sigma: 0.3f64.to_radians(),

@@ -143,7 +143,7 @@ fn candidates<'a, 'b>(
         .map(|(index, obs)| Candidate {
             index,
             obs,
-            usable: Usable::of(obs, &camera.intrinsics),
+            usable: Usable::of(obs, &camera.intrinsics, params),
             active: true,
         })
         .filter(|c| c.usable.count() > 0)
@@ -623,6 +623,52 @@ mod tests {
             fix.fix.towers_used.contains(&"N1".to_string()),
             "its top and centre still count"
         );
+    }
+
+    /// A near tower whose foot is below the image, boxed as a learned
+    /// detector boxes it: the bottom stops 40 px short of the border. Taken
+    /// as the foot, it moves the fix by metres; taken as cut by the margin
+    /// share, the top, the axis and the barometer give the pose.
+    #[test]
+    fn a_box_that_stops_short_of_the_border_is_not_read_as_the_foot() {
+        let camera = PinholeCamera::default_hd();
+        let pose = Pose {
+            position_in_world: Point3::new(0.0, 0.0, 30.0),
+            attitude: attitude(0.0, -0.05, 0.0),
+        };
+        let near = tower("N1", 50.0, 5.0, 38.0);
+        let cfw = camera.world_from_camera(&pose).inverse();
+        let top = camera.project(&(cfw * near.top_in_world())).expect("top");
+        let foot = camera.project(&(cfw * near.foot_in_world)).expect("foot");
+        assert!(foot.y > 720.0 && top.y > 100.0, "{top} {foot}");
+        let centre = 0.5 * (top.x + foot.x);
+        let short = Observation::new(
+            &near,
+            PixelBox::new(centre - 60.0, top.y, centre + 60.0, 680.0),
+            0.4,
+        );
+        let height = Some(Height {
+            up_m: 30.0,
+            sigma_m: 0.5,
+        });
+        // A cut tower seeds no start of its own: the prediction does.
+        let prior = Some(Point3::new(4.0, -3.0, 30.0));
+        let error = |obs: Observation<'_>, params: &LocalizerParams| {
+            let fix =
+                robust_lbl_with_height(&[obs], &camera, &pose.attitude, prior, height, params)
+                    .expect("a fix");
+            (fix.fix.position_in_world - pose.position_in_world).norm()
+        };
+        let plain = LocalizerParams::default();
+        assert!(
+            error(short, &plain) > 5.0,
+            "the short bottom read as the foot"
+        );
+        let margin = LocalizerParams {
+            cut_margin_share: 0.15,
+            ..plain
+        };
+        assert!(error(short, &margin) < 0.5);
     }
 
     #[test]

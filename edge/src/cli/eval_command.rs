@@ -92,6 +92,11 @@ pub enum EvalCommand {
         /// runs (default: the daemon's, `detector.edge_sigma_share`).
         #[arg(long)]
         edge_sigma_share: Option<f64>,
+        /// The share of the box height within which a box's end near the
+        /// image's border is taken as cut, for the YOLO runs (default: the
+        /// daemon's, `detector.cut_margin_share`).
+        #[arg(long)]
+        cut_margin_share: Option<f64>,
         /// Also fuse a velocity each frame, as a VIO or optical-flow
         /// estimator would send it: the truth's plus noise of this 1-sigma
         /// per axis, m/s.
@@ -134,6 +139,7 @@ impl EvalCommand {
                 oracle_only,
                 edge_sigma_px,
                 edge_sigma_share,
+                cut_margin_share,
                 velocity_sigma,
                 no_barometer,
                 method,
@@ -156,6 +162,7 @@ impl EvalCommand {
                     model,
                     edge_sigma_px: Some(edge_sigma_px.unwrap_or(section.edge_sigma_px)),
                     edge_sigma_share: Some(edge_sigma_share.unwrap_or(section.edge_sigma_share)),
+                    cut_margin_share: Some(cut_margin_share.unwrap_or(section.cut_margin_share)),
                     velocity_sigma_mps: *velocity_sigma,
                     no_barometer: *no_barometer,
                     method,

@@ -312,6 +312,10 @@ pub struct DetectorSection {
     /// to 4.4 % of the box height; the default keeps to the low end, as
     /// `edge_sigma_px` and the small-box term add to it).
     pub edge_sigma_share: f64,
+    /// A side of a box within this share of its height of the image's border
+    /// is taken as cut, not as the tower's top, foot or axis: the model stops
+    /// tens of pixels short of the border on a near tower that the frame cuts.
+    pub cut_margin_share: f64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -504,6 +508,7 @@ impl Default for DetectorSection {
             detector_type_weight: towernav_core::detector::postprocess::DETECTOR_TYPE_WEIGHT,
             edge_sigma_px: YOLO_EDGE_SIGMA_PX,
             edge_sigma_share: YOLO_EDGE_SIGMA_SHARE,
+            cut_margin_share: YOLO_CUT_MARGIN_SHARE,
         }
     }
 }
@@ -513,6 +518,10 @@ pub const YOLO_EDGE_SIGMA_PX: f64 = 1.0;
 
 /// The share of the box height that adds to it (see `edge_sigma_share`).
 pub const YOLO_EDGE_SIGMA_SHARE: f64 = 0.025;
+
+/// How near the border, as a share of the box height, a box's side is taken
+/// as cut (see `cut_margin_share`).
+pub const YOLO_CUT_MARGIN_SHARE: f64 = 0.15;
 
 impl Default for PipelineSection {
     fn default() -> Self {
@@ -728,6 +737,13 @@ impl EdgeConfig {
             return invalid(
                 "detector.edge_sigma_share",
                 format!("{share} is not between 0 and 0.5"),
+            );
+        }
+        let margin = self.detector.cut_margin_share;
+        if !(margin.is_finite() && (0.0..=0.5).contains(&margin)) {
+            return invalid(
+                "detector.cut_margin_share",
+                format!("{margin} is not between 0 and 0.5"),
             );
         }
         if self.detector.threads == 0 || self.detector.threads > 64 {
@@ -1018,7 +1034,7 @@ mod tests {
         assert!(err.contains("fsp"), "{err}");
         let err = EdgeConfig::parse("[source]\nfps = \"fast\"\n").expect_err("type");
         assert!(err.contains("fps"), "{err}");
-        let cases: [(&str, &str); 13] = [
+        let cases: [(&str, &str); 14] = [
             (
                 "[source]\nkind = \"v4l2\"\npath = \"/dev/video0\"\nspeed = 2\n",
                 "source.speed",
@@ -1041,6 +1057,10 @@ mod tests {
             (
                 "[detector]\nedge_sigma_share = -0.1\n",
                 "detector.edge_sigma_share",
+            ),
+            (
+                "[detector]\ncut_margin_share = 0.9\n",
+                "detector.cut_margin_share",
             ),
             (
                 "[source]\nkind = \"images\"\npath = \"x\"\n[detector]\nkind = \"oracle\"\n",

@@ -38,6 +38,9 @@ pub struct LocBenchOptions {
     /// The share of the box height that adds to it for the YOLO runs
     /// (`None`: the pipeline's default).
     pub edge_sigma_share: Option<f64>,
+    /// The share of the box height within which a box's end near the
+    /// border is taken as cut, for the YOLO runs (`None`: the pipeline's).
+    pub cut_margin_share: Option<f64>,
     /// Also fuse a velocity, as a VIO or optical-flow estimator would give
     /// it: the truth's plus white noise of this 1-sigma per axis, m/s.
     pub velocity_sigma_mps: Option<f64>,
@@ -57,6 +60,9 @@ pub struct FlyOptions {
     pub edge_sigma_px: Option<f64>,
     /// The share of the box height that adds to it (`None`: the pipeline's default).
     pub edge_sigma_share: Option<f64>,
+    /// How near the border a box's end is taken as cut, as a share of its
+    /// height (`None`: the pipeline's default).
+    pub cut_margin_share: Option<f64>,
     /// A simulated outside velocity's 1-sigma per axis, m/s (`None`: none).
     pub velocity_sigma_mps: Option<f64>,
     /// A simulated barometer; `None`: none.
@@ -200,6 +206,9 @@ pub fn fly(
     }
     if let Some(share) = options.edge_sigma_share {
         config.localizer.edge_sigma_share = share;
+    }
+    if let Some(share) = options.cut_margin_share {
+        config.localizer.cut_margin_share = share;
     }
     config.method = options.method;
     let mut velocity_noise = ChaCha8Rng::seed_from_u64(scenario.seed ^ 0x005e_ed0f_u64);
@@ -397,6 +406,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
         let oracle = FlyOptions {
             edge_sigma_px: None,
             edge_sigma_share: None,
+            cut_margin_share: None,
             velocity_sigma_mps: options.velocity_sigma_mps,
             barometer,
             method: options.method,
@@ -412,6 +422,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
             let yolo = FlyOptions {
                 edge_sigma_px: options.edge_sigma_px,
                 edge_sigma_share: options.edge_sigma_share,
+                cut_margin_share: options.cut_margin_share,
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
                 method: options.method,
