@@ -191,6 +191,7 @@ pub(crate) fn pipeline_for(
         pipeline_config.localizer.edge_sigma_px = config.detector.edge_sigma_px;
         pipeline_config.localizer.edge_sigma_share = config.detector.edge_sigma_share;
         pipeline_config.localizer.cut_margin_share = config.detector.cut_margin_share;
+        pipeline_config.localizer.cut_sigma_scale = config.detector.cut_sigma_scale;
     }
     if let Some(filter) = pipeline_config.filter.as_mut() {
         filter.max_report_sigma_m = config.pipeline.max_coast_sigma_m;

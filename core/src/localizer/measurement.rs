@@ -80,7 +80,12 @@ pub fn residuals(
         return false;
     };
     let k = &camera.k;
-    let sigma_e = edge_sigma(o, params);
+    let cut = if usable.count() < 3 {
+        params.cut_sigma_scale
+    } else {
+        1.0
+    };
+    let sigma_e = edge_sigma(o, params) * cut;
     let (sh, sv) = (o.tower.sigma_horizontal_m, o.tower.sigma_vertical_m);
     // A survey error moves the whole tower: sideways by sh, in range by sh, up by sv.
     let survey_v = |p: &Projected| {

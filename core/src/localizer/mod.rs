@@ -68,6 +68,10 @@ pub struct LocalizerParams {
     /// height of the border is taken as cut (0 for the simulator's oracle, whose cut boxes
     /// end at the border; [`towernav_geometry::EDGE_MARGIN_PX`] at least).
     pub cut_margin_share: f64,
+    /// The spread of a box's edges when the frame cuts the box, times the
+    /// spread of a whole one's: a learned detector that sees part of a tower
+    /// guesses the rest, and its other edges err far more (1 for the oracle).
+    pub cut_sigma_scale: f64,
     /// Boxes shorter than this are not trusted by ours at all.
     pub min_box_height_px: f64,
     /// The paper trusted only large boxes; its method keeps its own threshold.
@@ -90,6 +94,7 @@ impl Default for LocalizerParams {
             small_box_px: 40.0,
             edge_sigma_share: 0.0,
             cut_margin_share: 0.0,
+            cut_sigma_scale: 1.0,
             min_box_height_px: 8.0,
             paper_min_box_height_px: 20.0,
             yaw_sigma: 0.3f64.to_radians(),

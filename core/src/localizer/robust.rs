@@ -653,22 +653,35 @@ mod tests {
         });
         // A cut tower seeds no start of its own: the prediction does.
         let prior = Some(Point3::new(4.0, -3.0, 30.0));
-        let error = |obs: Observation<'_>, params: &LocalizerParams| {
-            let fix =
-                robust_lbl_with_height(&[obs], &camera, &pose.attitude, prior, height, params)
-                    .expect("a fix");
-            (fix.fix.position_in_world - pose.position_in_world).norm()
+        let fix = |params: &LocalizerParams| {
+            robust_lbl_with_height(&[short], &camera, &pose.attitude, prior, height, params)
+                .expect("a fix")
+                .fix
+        };
+        let error = |params: &LocalizerParams| {
+            (fix(params).position_in_world - pose.position_in_world).norm()
         };
         let plain = LocalizerParams::default();
-        assert!(
-            error(short, &plain) > 5.0,
-            "the short bottom read as the foot"
-        );
+        assert!(error(&plain) > 5.0, "the short bottom read as the foot");
         let margin = LocalizerParams {
             cut_margin_share: 0.15,
+            edge_sigma_share: 0.025,
             ..plain
         };
-        assert!(error(short, &margin) < 0.5);
+        assert!(error(&margin) < 0.5);
+        // A cut box's edges stray more, and the fix says so.
+        let sigma = |params: &LocalizerParams| fix(params).covariance[(0, 0)].sqrt();
+        let wider = LocalizerParams {
+            cut_sigma_scale: 3.0,
+            ..margin
+        };
+        assert!(error(&wider) < 0.5);
+        assert!(
+            sigma(&wider) > 2.0 * sigma(&margin),
+            "{} {}",
+            sigma(&wider),
+            sigma(&margin)
+        );
     }
 
     #[test]

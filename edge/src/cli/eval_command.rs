@@ -97,6 +97,10 @@ pub enum EvalCommand {
         /// daemon's, `detector.cut_margin_share`).
         #[arg(long)]
         cut_margin_share: Option<f64>,
+        /// The edge spread of a box the frame cuts, times a whole one's, for
+        /// the YOLO runs (default: the daemon's, `detector.cut_sigma_scale`).
+        #[arg(long)]
+        cut_sigma_scale: Option<f64>,
         /// Also fuse a velocity each frame, as a VIO or optical-flow
         /// estimator would send it: the truth's plus noise of this 1-sigma
         /// per axis, m/s.
@@ -140,6 +144,7 @@ impl EvalCommand {
                 edge_sigma_px,
                 edge_sigma_share,
                 cut_margin_share,
+                cut_sigma_scale,
                 velocity_sigma,
                 no_barometer,
                 method,
@@ -163,6 +168,7 @@ impl EvalCommand {
                     edge_sigma_px: Some(edge_sigma_px.unwrap_or(section.edge_sigma_px)),
                     edge_sigma_share: Some(edge_sigma_share.unwrap_or(section.edge_sigma_share)),
                     cut_margin_share: Some(cut_margin_share.unwrap_or(section.cut_margin_share)),
+                    cut_sigma_scale: Some(cut_sigma_scale.unwrap_or(section.cut_sigma_scale)),
                     velocity_sigma_mps: *velocity_sigma,
                     no_barometer: *no_barometer,
                     method,

@@ -41,6 +41,9 @@ pub struct LocBenchOptions {
     /// The share of the box height within which a box's end near the
     /// border is taken as cut, for the YOLO runs (`None`: the pipeline's).
     pub cut_margin_share: Option<f64>,
+    /// The edge spread of a cut box, times a whole one's, for the YOLO runs
+    /// (`None`: the pipeline's).
+    pub cut_sigma_scale: Option<f64>,
     /// Also fuse a velocity, as a VIO or optical-flow estimator would give
     /// it: the truth's plus white noise of this 1-sigma per axis, m/s.
     pub velocity_sigma_mps: Option<f64>,
@@ -63,6 +66,9 @@ pub struct FlyOptions {
     /// How near the border a box's end is taken as cut, as a share of its
     /// height (`None`: the pipeline's default).
     pub cut_margin_share: Option<f64>,
+    /// The edge spread of a cut box, times a whole one's (`None`: the
+    /// pipeline's default).
+    pub cut_sigma_scale: Option<f64>,
     /// A simulated outside velocity's 1-sigma per axis, m/s (`None`: none).
     pub velocity_sigma_mps: Option<f64>,
     /// A simulated barometer; `None`: none.
@@ -209,6 +215,9 @@ pub fn fly(
     }
     if let Some(share) = options.cut_margin_share {
         config.localizer.cut_margin_share = share;
+    }
+    if let Some(scale) = options.cut_sigma_scale {
+        config.localizer.cut_sigma_scale = scale;
     }
     config.method = options.method;
     let mut velocity_noise = ChaCha8Rng::seed_from_u64(scenario.seed ^ 0x005e_ed0f_u64);
@@ -407,6 +416,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
             edge_sigma_px: None,
             edge_sigma_share: None,
             cut_margin_share: None,
+            cut_sigma_scale: None,
             velocity_sigma_mps: options.velocity_sigma_mps,
             barometer,
             method: options.method,
@@ -423,6 +433,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
                 edge_sigma_px: options.edge_sigma_px,
                 edge_sigma_share: options.edge_sigma_share,
                 cut_margin_share: options.cut_margin_share,
+                cut_sigma_scale: options.cut_sigma_scale,
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
                 method: options.method,
