@@ -75,4 +75,15 @@ mod tests {
         let foot = Cut::in_image(&PixelBox::new(10.0, 10.0, 50.0, 97.0), 100.0, 100.0);
         assert!(foot.bottom && foot.end() && !foot.side());
     }
+
+    /// A wider margin rules more sides cut, never fewer.
+    #[test]
+    fn a_wider_margin_cuts_the_sides_within_it() {
+        let b = PixelBox::new(30.0, 12.0, 70.0, 80.0);
+        assert!(!Cut::within(&b, 100.0, 100.0, EDGE_MARGIN_PX).any());
+        let wide = Cut::within(&b, 100.0, 100.0, 25.0);
+        assert!(wide.top && wide.bottom && !wide.side(), "{wide:?}");
+        let wider = Cut::within(&b, 100.0, 100.0, 31.0);
+        assert!(wider.left && wider.right && wider.end(), "{wider:?}");
+    }
 }
