@@ -734,33 +734,37 @@ impl EdgeConfig {
                     .into(),
             );
         }
-        let sigma = self.detector.edge_sigma_px;
-        if !(sigma.is_finite() && (0.1..=50.0).contains(&sigma)) {
-            return invalid(
+        // The localizer's noise model, each within what a detector could mean.
+        let d = &self.detector;
+        for (key, value, (lo, hi), unit) in [
+            (
                 "detector.edge_sigma_px",
-                format!("{sigma} is not between 0.1 and 50 px"),
-            );
-        }
-        let share = self.detector.edge_sigma_share;
-        if !(share.is_finite() && (0.0..=0.5).contains(&share)) {
-            return invalid(
+                d.edge_sigma_px,
+                (0.1, 50.0),
+                " px",
+            ),
+            (
                 "detector.edge_sigma_share",
-                format!("{share} is not between 0 and 0.5"),
-            );
-        }
-        let margin = self.detector.cut_margin_share;
-        if !(margin.is_finite() && (0.0..=0.5).contains(&margin)) {
-            return invalid(
+                d.edge_sigma_share,
+                (0.0, 0.5),
+                "",
+            ),
+            (
                 "detector.cut_margin_share",
-                format!("{margin} is not between 0 and 0.5"),
-            );
-        }
-        let scale = self.detector.cut_sigma_scale;
-        if !(scale.is_finite() && (1.0..=20.0).contains(&scale)) {
-            return invalid(
+                d.cut_margin_share,
+                (0.0, 0.5),
+                "",
+            ),
+            (
                 "detector.cut_sigma_scale",
-                format!("{scale} is not between 1 and 20"),
-            );
+                d.cut_sigma_scale,
+                (1.0, 20.0),
+                "",
+            ),
+        ] {
+            if !(value.is_finite() && (lo..=hi).contains(&value)) {
+                return invalid(key, format!("{value} is not between {lo} and {hi}{unit}"));
+            }
         }
         if self.detector.threads == 0 || self.detector.threads > 64 {
             return invalid(
