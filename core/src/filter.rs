@@ -2,10 +2,11 @@
 //! acceleration) that fuses per-frame fixes, gates them by their innovation,
 //! coasts through frames with no tower, and says when it has lost the pose.
 //!
-//! After an outage the filter coasts, reporting while its horizontal 1-sigma
-//! stays within `max_report_sigma_m`: how long that lasts follows from how
-//! well the velocity was known (and any velocity fused meanwhile), not from a
-//! clock. Its prediction still guides tower identity until `max_coast_s`
+//! It reports an estimate only while its horizontal 1-sigma is within
+//! `max_report_sigma_m`, a fused fix as much as a coast: an estimate the
+//! autopilot should not lean on is not sent. After an outage the filter
+//! coasts; how long it reports follows from how well the velocity was known
+//! (and any velocity fused meanwhile), not from a clock. Its prediction still guides tower identity until `max_coast_s`
 //! (20 s) after the last fix, when it is lost and the next good fix restarts it. A run of
 //! `restart_after_rejections` rejected fixes also restarts it from the newest
 //! fix: a filter that rejects everything has itself gone wrong. A restart needs
@@ -25,9 +26,10 @@ pub struct FilterParams {
     pub gate_chi2: f64,
     pub max_coast_s: f64,
     /// Estimates are reported only while the horizontal position's 1-sigma
-    /// (the major axis of its ellipse) is at most this, metres (5: about a
-    /// consumer GNSS receiver's spread); the prediction lives on (for
-    /// identity) until `max_coast_s`.
+    /// (the major axis of its ellipse) is at most this, metres, whether a fix
+    /// was fused or not: one uncertain fix (a single near tower whose box the
+    /// frame cuts) is held back until more agree. The state and its
+    /// prediction live on (for identity) until `max_coast_s`.
     pub max_report_sigma_m: f64,
     /// Chi-square gate on a 3-D velocity measurement's innovation (99.9 %).
     pub velocity_gate_chi2: f64,
@@ -160,6 +162,12 @@ impl PoseFilter {
         ))
     }
 
+    /// The state's position as of its last step, reported or not.
+    pub fn position(&self) -> Option<Point3<f64>> {
+        let s = self.state.as_ref()?;
+        Some(Point3::from(s.x.fixed_rows::<3>(0).into_owned()))
+    }
+
     /// Whether a fix was accepted within the last `within_s` seconds: the
     /// prediction is good enough to judge tower identities by.
     pub fn tracking(&self, time_s: f64, within_s: f64) -> bool {
@@ -228,12 +236,9 @@ impl PoseFilter {
         covariance.fixed_view_mut::<3, 3>(0, 0).copy_from(
             &(s.p.fixed_view::<3, 3>(0, 0) + s.fix_covariance * self.params.persistent_share),
         );
-        // A fused fix is always told, however uncertain (its covariance says
-        // so); the bound ends a coast.
-        let fused = matches!(verdict, FixVerdict::Accepted | FixVerdict::Restarted);
-        if !fused
-            && horizontal_sigma(&covariance.fixed_view::<2, 2>(0, 0).into_owned())
-                > self.params.max_report_sigma_m
+        // The bound ends a coast and holds back an uncertain fix alike.
+        if horizontal_sigma(&covariance.fixed_view::<2, 2>(0, 0).into_owned())
+            > self.params.max_report_sigma_m
         {
             return (None, verdict);
         }
@@ -494,6 +499,29 @@ mod tests {
         }
         let p = g.predicted_position(7.0).expect("tracking");
         assert!((p.x - 70.0).abs() < 3.0, "{p}");
+    }
+
+    #[test]
+    fn an_uncertain_fix_is_fused_but_not_reported_until_the_estimate_is_good() {
+        let mut f = tracked();
+        f.step(20.0, None, 0.0, 1e-4);
+        // After a long coast, one uncertain fix (8 m) is fused but held back;
+        // good fixes then bring the estimate under the bound and it is told.
+        let (held, verdict) = f.step(20.1, Some(&fix_at(190.0, 0.0, 8.0)), 0.0, 1e-4);
+        assert_eq!(verdict, FixVerdict::Accepted);
+        assert!(held.is_none(), "{held:?}");
+        assert!(f.tracking(20.1, 0.5), "the fix moved the state");
+        let mut told = None;
+        for i in 1..=10 {
+            let t = 20.1 + f64::from(i) / 30.0;
+            told = f.step(t, Some(&fix_at(190.0, 0.0, 1.0)), 0.0, 1e-4).0;
+        }
+        let told = told.expect("reported once the fixes agree");
+        let sigma = horizontal_sigma(&told.covariance.fixed_view::<2, 2>(0, 0).into_owned());
+        assert!(
+            sigma <= FilterParams::default().max_report_sigma_m,
+            "{sigma}"
+        );
     }
 
     #[test]

@@ -306,8 +306,13 @@ impl Pipeline {
         tamper(&mut bound);
         let (fix, paper_fix) = self.localize(frame, &bound, predicted);
         let (mut estimate, verdict) = self.filter_step(frame, fix.as_ref());
+        // The pose guess after a loss: where the filter last stood behind,
+        // fusing a fix (even one held back as uncertain) or reporting.
+        let fused = matches!(verdict, FixVerdict::Accepted | FixVerdict::Restarted);
         if let Some(e) = &estimate {
             self.last_known = Some(e.position_in_world);
+        } else if fused && let Some(p) = self.filter.as_ref().and_then(PoseFilter::position) {
+            self.last_known = Some(p);
         }
         let lever = self.lever_arm_in_world(Some(&frame.imu_attitude));
         let (mut fix, mut paper_fix) = (fix, paper_fix);
