@@ -168,7 +168,7 @@ fn autopilot_link(config: &EdgeConfig, datum: Datum) -> AutopilotLink {
     AutopilotLink::new(
         config
             .mavlink
-            .link_config(accel_sigma, config.pipeline.max_coast_sigma_m),
+            .link_config(accel_sigma, config.pipeline.max_report_sigma_m),
         datum,
         Instant::now(),
         unix_now_us,
@@ -194,7 +194,7 @@ pub(crate) fn pipeline_for(
         pipeline_config.localizer.cut_sigma_scale = config.detector.cut_sigma_scale;
     }
     if let Some(filter) = pipeline_config.filter.as_mut() {
-        filter.max_report_sigma_m = config.pipeline.max_coast_sigma_m;
+        filter.max_report_sigma_m = config.pipeline.max_report_sigma_m;
     }
     if !config.pipeline.filter {
         pipeline_config.filter = None;

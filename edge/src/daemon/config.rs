@@ -349,11 +349,13 @@ pub struct PipelineSection {
     /// Take-off point [lat_deg, lon_deg, alt_m]: the mission datum and the
     /// filter's first guess. Needed for real sources; the simulator knows its own.
     pub takeoff: Option<[f64; 3]>,
-    /// With no tower in view the filter coasts, reporting while its
-    /// horizontal 1-sigma stays within this, metres (5: about a consumer
-    /// GNSS receiver's spread; beyond it the autopilot's own dead reckoning
-    /// is as good).
-    pub max_coast_sigma_m: f64,
+    /// The filter reports an estimate only while its horizontal 1-sigma is
+    /// within this, metres (5: about a consumer GNSS receiver's spread;
+    /// beyond it the autopilot's own dead reckoning is as good): it ends a
+    /// coast with no tower in view, and holds back an uncertain fix.
+    /// (`max_coast_sigma_m` is its older name.)
+    #[serde(alias = "max_coast_sigma_m")]
+    pub max_report_sigma_m: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -401,7 +403,7 @@ pub struct MavlinkSection {
     /// The fix is 3-D only this long after a tower fix, seconds.
     pub fresh_fix_s: f64,
     /// Coasting, the fix is 2-D at most this long after the last tower fix,
-    /// then none; the filter's `pipeline.max_coast_sigma_m` usually ends
+    /// then none; the filter's `pipeline.max_report_sigma_m` usually ends
     /// the coast sooner.
     pub coast_fix_s: f64,
 }
@@ -537,7 +539,7 @@ impl Default for PipelineSection {
         Self {
             method: "rays".into(),
             filter: true,
-            max_coast_sigma_m: 5.0,
+            max_report_sigma_m: 5.0,
             takeoff: None,
         }
     }
@@ -857,10 +859,10 @@ impl EdgeConfig {
                 ),
             );
         }
-        let sigma = self.pipeline.max_coast_sigma_m;
+        let sigma = self.pipeline.max_report_sigma_m;
         if !(sigma > 0.0 && sigma <= 1000.0) {
             return invalid(
-                "pipeline.max_coast_sigma_m",
+                "pipeline.max_report_sigma_m",
                 format!("{sigma} is not in (0, 1000] metres"),
             );
         }
@@ -975,6 +977,13 @@ mod tests {
         assert_eq!(config.uav, "scout7");
         assert_eq!(config.source.fps, 30.0);
         config.validate().expect("valid");
+    }
+
+    #[test]
+    fn the_report_bound_keeps_its_older_name() {
+        let config = EdgeConfig::parse("[pipeline]\nmax_coast_sigma_m = 8.0\n")
+            .expect("the older name parses");
+        assert_eq!(config.pipeline.max_report_sigma_m, 8.0);
     }
 
     #[test]
