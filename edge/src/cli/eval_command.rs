@@ -101,6 +101,11 @@ pub enum EvalCommand {
         /// the YOLO runs (default: the daemon's, `detector.cut_sigma_scale`).
         #[arg(long)]
         cut_sigma_scale: Option<f64>,
+        /// The filter publishes an estimate only while its horizontal
+        /// 1-sigma is within this, metres, in both runs (default: the
+        /// daemon's, `pipeline.max_report_sigma_m`).
+        #[arg(long)]
+        max_report_sigma: Option<f64>,
         /// Also fuse a velocity each frame, as a VIO or optical-flow
         /// estimator would send it: the truth's plus noise of this 1-sigma
         /// per axis, m/s.
@@ -145,6 +150,7 @@ impl EvalCommand {
                 edge_sigma_share,
                 cut_margin_share,
                 cut_sigma_scale,
+                max_report_sigma,
                 velocity_sigma,
                 no_barometer,
                 method,
@@ -169,6 +175,13 @@ impl EvalCommand {
                     edge_sigma_share: Some(edge_sigma_share.unwrap_or(section.edge_sigma_share)),
                     cut_margin_share: Some(cut_margin_share.unwrap_or(section.cut_margin_share)),
                     cut_sigma_scale: Some(cut_sigma_scale.unwrap_or(section.cut_sigma_scale)),
+                    max_report_sigma_m: Some(
+                        max_report_sigma.unwrap_or(
+                            towernav_edge::daemon::config::EdgeConfig::default()
+                                .pipeline
+                                .max_report_sigma_m,
+                        ),
+                    ),
                     velocity_sigma_mps: *velocity_sigma,
                     no_barometer: *no_barometer,
                     method,

@@ -44,6 +44,9 @@ pub struct LocBenchOptions {
     /// The edge spread of a cut box, times a whole one's, for the YOLO runs
     /// (`None`: the pipeline's).
     pub cut_sigma_scale: Option<f64>,
+    /// The filter publishes an estimate only while its horizontal 1-sigma
+    /// is within this, metres, in both runs (`None`: the filter's default).
+    pub max_report_sigma_m: Option<f64>,
     /// Also fuse a velocity, as a VIO or optical-flow estimator would give
     /// it: the truth's plus white noise of this 1-sigma per axis, m/s.
     pub velocity_sigma_mps: Option<f64>,
@@ -69,6 +72,9 @@ pub struct FlyOptions {
     /// The edge spread of a cut box, times a whole one's (`None`: the
     /// pipeline's default).
     pub cut_sigma_scale: Option<f64>,
+    /// The filter's bound on a published estimate's horizontal 1-sigma,
+    /// metres (`None`: the filter's default).
+    pub max_report_sigma_m: Option<f64>,
     /// A simulated outside velocity's 1-sigma per axis, m/s (`None`: none).
     pub velocity_sigma_mps: Option<f64>,
     /// A simulated barometer; `None`: none.
@@ -218,6 +224,9 @@ pub fn fly(
     }
     if let Some(scale) = options.cut_sigma_scale {
         config.localizer.cut_sigma_scale = scale;
+    }
+    if let (Some(sigma), Some(filter)) = (options.max_report_sigma_m, config.filter.as_mut()) {
+        filter.max_report_sigma_m = sigma;
     }
     config.method = options.method;
     let mut velocity_noise = ChaCha8Rng::seed_from_u64(scenario.seed ^ 0x005e_ed0f_u64);
@@ -417,6 +426,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
             edge_sigma_share: None,
             cut_margin_share: None,
             cut_sigma_scale: None,
+            max_report_sigma_m: options.max_report_sigma_m,
             velocity_sigma_mps: options.velocity_sigma_mps,
             barometer,
             method: options.method,
@@ -434,6 +444,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
                 edge_sigma_share: options.edge_sigma_share,
                 cut_margin_share: options.cut_margin_share,
                 cut_sigma_scale: options.cut_sigma_scale,
+                max_report_sigma_m: options.max_report_sigma_m,
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
                 method: options.method,
