@@ -114,7 +114,8 @@ fn check_framing(heard: &Heard, sent: u64) {
 }
 
 /// GPS_INPUT at its rate throughout, the fix 3-D, then lost, then 3-D again;
-/// the seconds it was lost.
+/// the seconds it was lost. The loss is the longest stretch without a fix
+/// between two 3-D fixes: an uncertain fix held back also drops it, briefly.
 fn check_fix_sequence(gps: &[&HeardMessage], wall_s: f64) -> f64 {
     assert!(
         gps.len() as f64 >= 4.0 * wall_s,
@@ -123,8 +124,19 @@ fn check_fix_sequence(gps: &[&HeardMessage], wall_s: f64) -> f64 {
     );
     let fix: Vec<u8> = gps.iter().map(|g| g.f64("fix_type") as u8).collect();
     let first_3d = fix.iter().position(|&f| f == 3).expect("a 3-D fix");
-    let lost = first_3d + fix[first_3d..].iter().position(|&f| f <= 1).expect("lost");
-    let back = lost + fix[lost..].iter().position(|&f| f == 3).expect("regained");
+    let mut stretches = Vec::new();
+    let mut from = first_3d;
+    while let Some(lost) = fix[from..].iter().position(|&f| f <= 1).map(|i| from + i) {
+        let Some(back) = fix[lost..].iter().position(|&f| f == 3).map(|i| lost + i) else {
+            break;
+        };
+        stretches.push((lost, back));
+        from = back;
+    }
+    let (lost, back) = stretches
+        .into_iter()
+        .max_by(|a, b| (gps[a.1].t - gps[a.0].t).total_cmp(&(gps[b.1].t - gps[b.0].t)))
+        .expect("lost, and regained");
     let lost_s = gps[back].t - gps[lost].t;
     assert!(lost_s > 2.0, "lost for {lost_s:.1} s");
     let lost_rate = (back - lost) as f64 / lost_s;
