@@ -85,7 +85,8 @@ pub enum EdgeState {
     /// No fix in the last frame: the estimate is the filter's prediction,
     /// its covariance growing.
     Coasting,
-    /// No estimate: towers out of sight too long, the pose is lost.
+    /// No estimate: towers out of sight too long, the pose is lost, or the
+    /// filter's estimate is beyond its report bound (an uncertain fix held back).
     NoFix,
 }
 
