@@ -6,8 +6,9 @@
 //! `max_report_sigma_m`, a fused fix as much as a coast: an estimate the
 //! autopilot should not lean on is not sent. After an outage the filter
 //! coasts; how long it reports follows from how well the velocity was known
-//! (and any velocity fused meanwhile), not from a clock. Its prediction still guides tower identity until `max_coast_s`
-//! (20 s) after the last fix, when it is lost and the next good fix restarts it. A run of
+//! (and any velocity fused meanwhile), not from a clock. Its prediction
+//! still guides tower identity until `max_coast_s` (20 s) after the last
+//! fix, when it is lost and the next good fix restarts it. A run of
 //! `restart_after_rejections` rejected fixes also restarts it from the newest
 //! fix: a filter that rejects everything has itself gone wrong. A restart needs
 //! a fix from two or more towers, and after a loss one within reach of the

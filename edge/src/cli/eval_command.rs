@@ -177,8 +177,7 @@ impl EvalCommand {
                     cut_sigma_scale: Some(cut_sigma_scale.unwrap_or(section.cut_sigma_scale)),
                     max_report_sigma_m: Some(
                         max_report_sigma.unwrap_or(
-                            towernav_edge::daemon::config::EdgeConfig::default()
-                                .pipeline
+                            towernav_edge::daemon::config::PipelineSection::default()
                                 .max_report_sigma_m,
                         ),
                     ),
