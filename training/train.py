@@ -9,10 +9,10 @@ pinned environment first), or by hand:
     .venv-train/bin/python training/train.py --data target/train/dataset --out target/train/run
 
 It trains a YOLOv5-family model (Ultralytics `yolov5n.yaml`; no outside
-weights: nothing can be downloaded here) on the CPU within a wall-clock budget,
-resumes from `last.pt` when a run was interrupted, exports ONNX (opset 17,
-class names in the metadata) at the edge's input size, and evaluates on the
-held-out test worlds. Everything it writes stays under --out.
+weights: nothing can be downloaded here) on the CPU, or a GPU with
+`--device 0`, within a wall-clock budget; it resumes from `last.pt` when a
+run was interrupted, exports ONNX (opset 17, class names in the metadata) at
+the edge's input size, and evaluates on the held-out test worlds. Everything it writes stays under --out.
 """
 
 from __future__ import annotations
@@ -36,8 +36,13 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--export-w", type=int, default=512, help="exported input width")
     p.add_argument("--hours", type=float, default=1.6, help="wall-clock budget for the training loop")
     p.add_argument("--epochs", type=int, default=60, help="upper bound; the time budget usually ends first")
-    p.add_argument("--batch", type=int, default=8, help="small batches: more steps in a short CPU budget")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument(
+        "--device",
+        default=os.environ.get("TOWERNAV_TRAIN_DEVICE", "cpu"),
+        help="training device: cpu, or a CUDA index such as 0 (default: $TOWERNAV_TRAIN_DEVICE, else cpu)",
+    )
+    p.add_argument("--batch", type=int, help="default 8 on the CPU (more steps in a short budget), 64 on a GPU")
+    p.add_argument("--workers", type=int, help="data loader processes (default 2 on the CPU, all cores but two on a GPU)")
     p.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
@@ -50,6 +55,11 @@ def parse_args() -> argparse.Namespace:
 
 def main() -> int:
     args = parse_args()
+    on_gpu = args.device != "cpu"
+    if args.batch is None:
+        args.batch = 64 if on_gpu else 8
+    if args.workers is None:
+        args.workers = max(2, (os.cpu_count() or 4) - 2) if on_gpu else 2
     out = args.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
     # Keep Ultralytics' settings inside the run and never reach the network.
@@ -90,7 +100,7 @@ def main() -> int:
             imgsz=args.imgsz,
             batch=args.batch,
             workers=args.workers,
-            device="cpu",
+            device=args.device,
             cache="ram",
             pretrained=bool(args.init),
             amp=False,
@@ -146,7 +156,7 @@ def main() -> int:
             split=split,
             imgsz=args.imgsz,
             batch=args.batch,
-            device="cpu",
+            device=args.device,
             plots=False,
             project=str(out),
             name=f"val-{split}",

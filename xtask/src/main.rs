@@ -62,6 +62,10 @@ enum Task {
         /// The checkpoint to fine-tune (default: models/towers.pt).
         #[arg(long)]
         init: Option<PathBuf>,
+        /// Train the detector on this device: `cpu`, or a CUDA index such as
+        /// `0` (larger batches and more data workers there).
+        #[arg(long, default_value = "cpu")]
+        device: String,
         /// Labelled images to mix with the rendered frames (repeatable): a
         /// data.yaml (`towernav-edge label`'s output) or a folder with images/
         /// and labels/ or labels_yolo/. The model takes the first data.yaml's
@@ -254,6 +258,7 @@ fn main() -> anyhow::Result<()> {
             detector_only,
             from_scratch,
             init,
+            device,
             data,
             data_names,
             names,
@@ -274,6 +279,7 @@ fn main() -> anyhow::Result<()> {
                 detector_only,
                 from_scratch,
                 init,
+                device,
                 mix: train::MixOptions {
                     data,
                     data_names,

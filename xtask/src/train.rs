@@ -8,8 +8,9 @@
 //!    tower-free photos of `--backgrounds`);
 //! 3. runs `training/train.py`, detached, logging to `target/train/train.log`:
 //!    it fine-tunes the shipped detector (`models/towers.pt`; `--from-scratch`
-//!    starts over) within a wall-clock budget, resumes from its last
-//!    checkpoint when run again after an interruption, exports ONNX and evaluates;
+//!    starts over) within a wall-clock budget, on the CPU or `--device 0`,
+//!    resumes from its last checkpoint when run again after an interruption,
+//!    exports ONNX and evaluates;
 //! 4. then `training/train_types.py`: the tower-type classifier the edge runs
 //!    on each box's full-resolution crop (about 35 minutes), into `target/train/types`;
 //! 5. then `training/quantize.py`: INT8 versions of both (`cargo xtask quantize`
@@ -46,6 +47,7 @@ pub struct TrainOptions {
     pub detector_only: bool,
     pub from_scratch: bool,
     pub init: Option<PathBuf>,
+    pub device: String,
     pub mix: MixOptions,
     pub card: bool,
     pub work: Option<PathBuf>,
@@ -140,6 +142,7 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
         // The quantizer's own arguments, "$@" after `shift 9`.
         .args(quantize_args(&work, &dataset, !detector_only))
         .env("OMP_WAIT_POLICY", "PASSIVE")
+        .env("TOWERNAV_TRAIN_DEVICE", &options.device)
         .env("TOWERNAV_XTASK", std::env::current_exe()?)
         .env("TOWERNAV_TRAIN_WORK", &work)
         .current_dir(root);
