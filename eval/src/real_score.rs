@@ -145,18 +145,26 @@ pub struct NegativeScore {
     pub with_a_false_box: usize,
     pub rate: f64,
     pub at_score: f32,
+    /// Which frames, by index, with their best false box's score: a person
+    /// looks at these, not at the rate.
+    pub boxed: Vec<(usize, f32)>,
 }
 
 pub fn score_negatives(boxes_per_image: &[Vec<Scored>], at_score: f32) -> NegativeScore {
-    let with = boxes_per_image
+    let boxed: Vec<(usize, f32)> = boxes_per_image
         .iter()
-        .filter(|b| b.iter().any(|d| d.score >= at_score))
-        .count();
+        .enumerate()
+        .filter_map(|(i, b)| {
+            let best = b.iter().map(|d| d.score).fold(f32::NEG_INFINITY, f32::max);
+            (best >= at_score).then_some((i, best))
+        })
+        .collect();
     NegativeScore {
         images: boxes_per_image.len(),
-        with_a_false_box: with,
-        rate: with as f64 / boxes_per_image.len().max(1) as f64,
+        with_a_false_box: boxed.len(),
+        rate: boxed.len() as f64 / boxes_per_image.len().max(1) as f64,
         at_score,
+        boxed,
     }
 }
 
@@ -276,5 +284,6 @@ mod tests {
         let n = score_negatives(&[vec![], vec![b(0.2)], vec![b(0.3), b(0.9)], vec![]], 0.25);
         assert_eq!((n.images, n.with_a_false_box), (4, 1));
         assert!((n.rate - 0.25).abs() < 1e-12);
+        assert_eq!(n.boxed, vec![(2, 0.9)], "the frame and its best box");
     }
 }

@@ -39,6 +39,9 @@ pub struct RealEval {
     pub labelled: Option<FolderScore>,
     pub negatives_folder: Option<String>,
     pub negatives: Option<NegativeScore>,
+    /// The tower-free images that got a box, relative to their folder, each
+    /// with its best box's score.
+    pub negatives_boxed: Vec<(String, f32)>,
     /// Per image, pre-processing, inference and post-processing, ms.
     pub latency_ms_mean: f64,
 }
@@ -80,6 +83,7 @@ pub fn evaluate(
         Some(dir) => Some(score_labelled(&mut detector, dir, &model_names, options)?),
         None => None,
     };
+    let mut negatives_boxed = Vec::new();
     let negatives = match &options.negatives {
         Some(dir) => {
             let paths = images_under(dir)?;
@@ -90,7 +94,16 @@ pub fn evaluate(
                 progress.inc(1);
             }
             progress.finish_and_clear();
-            Some(score_negatives(&boxes, options.at_score))
+            let score = score_negatives(&boxes, options.at_score);
+            negatives_boxed = score
+                .boxed
+                .iter()
+                .map(|&(i, best)| {
+                    let name = paths[i].strip_prefix(dir).unwrap_or(&paths[i]);
+                    (name.display().to_string(), best)
+                })
+                .collect();
+            Some(score)
         }
         None => None,
     };
@@ -101,6 +114,7 @@ pub fn evaluate(
         labelled,
         negatives_folder: options.negatives.as_ref().map(|p| p.display().to_string()),
         negatives,
+        negatives_boxed,
         latency_ms_mean: detector.spent_ms / detector.runs.max(1) as f64,
     })
 }
@@ -255,6 +269,12 @@ pub fn write_all(
             100.0 * n.rate,
             n.at_score
         );
+        for (name, best) in &eval.negatives_boxed {
+            println!("  {name}: best box {best:.2}");
+        }
+        if !eval.negatives_boxed.is_empty() {
+            println!();
+        }
     }
     println!(
         "Mean time per image, pre + inference + post: {:.1} ms",
