@@ -48,6 +48,11 @@ pub struct IdentityParams {
     /// Another tower must fit better by this much (normalised distance) to
     /// count as evidence against the current binding.
     pub switch_margin: f64,
+    /// An unbound track is bound only when its best tower fits better than
+    /// any other free one by this much: a far box between two towers of a
+    /// row waits until it grows or the guess tightens, rather than take a
+    /// coin toss that the localizer then trusts.
+    pub ambiguity_margin: f64,
 }
 
 impl Default for IdentityParams {
@@ -61,6 +66,7 @@ impl Default for IdentityParams {
             release_gate: 4.5,
             release_after: 10,
             switch_margin: 0.5,
+            ambiguity_margin: 0.5,
         }
     }
 }
@@ -383,23 +389,30 @@ impl Identity {
                 .copied()
                 .filter(|(i, _)| !taken.contains(i))
                 .collect();
+            let distance = |r: usize, c: usize| -> Option<f64> {
+                let track = unbound[r];
+                let (tower, predicted) = free[c];
+                let pred = comparable(track, tower, predicted, map)?;
+                self.distance(track, pred, image, guess_trusted)
+            };
             let matches = max_score_matching(
                 unbound.len(),
                 free.len(),
-                |r, c| {
-                    let track = unbound[r];
-                    let (tower, predicted) = free[c];
-                    let Some(pred) = comparable(track, tower, predicted, map) else {
-                        return 0.0;
-                    };
-                    self.distance(track, pred, image, guess_trusted)
-                        .map_or(0.0, |d| self.params.gate - d)
-                },
+                |r, c| distance(r, c).map_or(0.0, |d| self.params.gate - d),
                 f64::MIN_POSITIVE,
             );
+            let mut chosen = Vec::with_capacity(matches.len());
             for (r, c) in matches {
-                self.bindings.insert(unbound[r].track_id, free[c].0);
+                let Some(best) = distance(r, c) else { continue };
+                let runner_up = (0..free.len())
+                    .filter(|&o| o != c)
+                    .filter_map(|o| distance(r, o))
+                    .fold(f64::INFINITY, f64::min);
+                if runner_up - best >= self.params.ambiguity_margin {
+                    chosen.push((unbound[r].track_id, free[c].0));
+                }
             }
+            self.bindings.extend(chosen);
         }
     }
 }
@@ -585,6 +598,40 @@ mod tests {
             );
             assert_eq!(bound, [None], "trusted: {trusted}");
         }
+    }
+
+    #[test]
+    fn a_box_between_two_towers_waits_for_a_guess_that_tells_them_apart() {
+        // Two look-alikes 2 m apart, 100 m ahead: a rough guess cannot tell
+        // which one the box is on, a trusted one can.
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        let map = map_of(&[("A1", 100.0, 1.0), ("A2", 100.0, -1.0)]);
+        let track = observe(&pose, &camera, &map, 0, 7);
+        let mut identity = Identity::new(IdentityParams::default());
+        let bound = identity.update(
+            std::slice::from_ref(&track),
+            &[7],
+            view(&pose, &camera, &map, false),
+            || vec![0, 1],
+        );
+        assert_eq!(bound, [None], "a coin toss is not taken");
+        let bound = identity.update(
+            std::slice::from_ref(&track),
+            &[7],
+            view(&pose, &camera, &map, true),
+            || vec![0, 1],
+        );
+        assert_eq!(bound, [Some(0)]);
+        // With one of them alone near the guess, the rough guess binds too.
+        let mut identity = Identity::new(IdentityParams::default());
+        let bound = identity.update(
+            std::slice::from_ref(&track),
+            &[7],
+            view(&pose, &camera, &map, false),
+            || vec![0],
+        );
+        assert_eq!(bound, [Some(0)]);
     }
 
     #[test]
