@@ -12,7 +12,8 @@ It trains a YOLOv5-family model (Ultralytics `yolov5n.yaml`; no outside
 weights: nothing can be downloaded here) on the CPU, or a GPU with
 `--device 0`, within a wall-clock budget; it resumes from `last.pt` when a
 run was interrupted, exports ONNX (opset 17, class names in the metadata) at
-the edge's input size, and evaluates on the held-out test worlds. Everything it writes stays under --out.
+the edge's input size, and evaluates on the held-out test worlds. Everything
+it writes stays under --out.
 """
 
 from __future__ import annotations
