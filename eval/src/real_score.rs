@@ -146,7 +146,8 @@ pub struct NegativeScore {
     pub rate: f64,
     pub at_score: f32,
     /// Which frames, by index, with their best false box's score: a person
-    /// looks at these, not at the rate.
+    /// looks at these, not at the rate. The report names them instead.
+    #[serde(skip)]
     pub boxed: Vec<(usize, f32)>,
 }
 
