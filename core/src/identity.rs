@@ -95,6 +95,9 @@ pub struct Identity {
     /// track id -> frames its binding disagreed with a trusted pose, less
     /// those it agreed since.
     strikes: HashMap<u64, u32>,
+    /// Tracks whose binding this frame's box speaks against while most
+    /// bindings agree: left out for the frame, bound as before after it.
+    doubted: Vec<u64>,
 }
 
 impl Identity {
@@ -238,6 +241,7 @@ impl Identity {
         self.bindings.retain(|id, _| live_track_ids.contains(id));
         self.pinned.retain(|id, _| live_track_ids.contains(id));
         self.strikes.retain(|id, _| live_track_ids.contains(id));
+        self.doubted.clear();
         let camera_from_world = camera.world_from_camera(guess).inverse();
         let image = (
             f64::from(camera.intrinsics.width),
@@ -273,7 +277,13 @@ impl Identity {
         self.bind_unbound(tracks, &near, image, map, guess_trusted);
         tracks
             .iter()
-            .map(|t| self.bindings.get(&t.track_id).copied())
+            .map(|t| {
+                if self.doubted.contains(&t.track_id) {
+                    None
+                } else {
+                    self.bindings.get(&t.track_id).copied()
+                }
+            })
             .collect()
     }
 
@@ -340,6 +350,7 @@ impl Identity {
             proposal.insert(open[r].track_id, towers[c].0);
         }
         let mut moves = Vec::new();
+        let (mut agreeing, mut doubted) = (0usize, Vec::new());
         for t in &open {
             let Some(&bound) = self.bindings.get(&t.track_id) else {
                 continue;
@@ -347,13 +358,23 @@ impl Identity {
             let wanted = proposal.get(&t.track_id).copied();
             let strikes = self.strikes.entry(t.track_id).or_insert(0);
             *strikes = if wanted == Some(bound) {
+                agreeing += 1;
                 strikes.saturating_sub(1)
             } else {
                 *strikes + 1
             };
             if *strikes >= p.release_after {
                 moves.push((t.track_id, wanted));
+            } else if wanted != Some(bound) {
+                doubted.push(t.track_id);
             }
+        }
+        // A box that flickers onto a neighbour of its tower for a frame would
+        // hand the localizer the wrong tower; when most bindings agree with
+        // the guess, the guess is the better judge of that frame. When most
+        // disagree, the guess itself is in doubt, and the bindings stand.
+        if doubted.len() < agreeing {
+            self.doubted = doubted;
         }
         for (track, wanted) in moves {
             self.strikes.remove(&track);
@@ -632,6 +653,41 @@ mod tests {
             || vec![0],
         );
         assert_eq!(bound, [Some(0)]);
+    }
+
+    #[test]
+    fn a_box_that_flickers_onto_a_neighbour_is_left_out_for_that_frame_only() {
+        // Two towers beside the path and a row of two ahead; the track on the
+        // row's first tower shows the second for one frame, as a tracker does
+        // when the detector gives one box for two that overlap.
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        let map = map_of(&[
+            ("A1", 100.0, 30.0),
+            ("A2", 100.0, -30.0),
+            ("B1", 200.0, 0.0),
+            ("B2", 260.0, 0.0),
+        ]);
+        let on = |tower: usize, track: u64| observe(&pose, &camera, &map, tower, track);
+        let steady = [on(0, 7), on(1, 8), on(2, 9)];
+        let flicker = [on(0, 7), on(1, 8), on(3, 9)];
+        let ids = [7, 8, 9];
+        let towers = || vec![0, 1, 2, 3];
+        let mut identity = Identity::new(IdentityParams::default());
+        let trusted = view(&pose, &camera, &map, true);
+        let bound = identity.update(&steady, &ids, trusted, towers);
+        assert_eq!(bound, [Some(0), Some(1), Some(2)]);
+        let bound = identity.update(&flicker, &ids, trusted, towers);
+        assert_eq!(bound, [Some(0), Some(1), None], "not handed over as B1");
+        let bound = identity.update(&steady, &ids, trusted, towers);
+        assert_eq!(bound, [Some(0), Some(1), Some(2)], "still B1's track");
+        // Alone, the box is not enough to doubt the binding: the guess may be the one that is off.
+        let mut identity = Identity::new(IdentityParams::default());
+        identity.update(&steady[2..], &[9], trusted, towers);
+        assert_eq!(
+            identity.update(&flicker[2..], &[9], trusted, towers),
+            [Some(2)]
+        );
     }
 
     #[test]

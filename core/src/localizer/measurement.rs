@@ -48,16 +48,29 @@ impl Usable {
     }
 }
 
-/// Spread of one box edge in the real image: grows for small boxes, with
-/// the box's size for a learned detector, and for low scores.
+/// Spread of the box's top or bottom in the real image: grows for small
+/// boxes, with the box's height for a learned detector, and for low scores.
 pub fn edge_sigma(o: &Observation<'_>, params: &LocalizerParams) -> f64 {
+    spread(o, params, o.raw.height())
+}
+
+/// Spread of the box's left or right side: as `edge_sigma`, but a learned
+/// detector's share goes with the box's width. A tower's box is several
+/// times taller than wide, and its centre column strays a pixel where its
+/// ends stray several.
+pub fn side_sigma(o: &Observation<'_>, params: &LocalizerParams) -> f64 {
+    spread(o, params, o.raw.width())
+}
+
+fn spread(o: &Observation<'_>, params: &LocalizerParams, extent: f64) -> f64 {
     let h = o.raw.height().max(1.0);
     let score = if o.score.is_finite() {
         o.score.clamp(0.0, 1.0)
     } else {
         0.0
     };
-    (params.edge_sigma_px * (1.0 + params.small_box_px / h) + params.edge_sigma_share * h)
+    (params.edge_sigma_px * (1.0 + params.small_box_px / h)
+        + params.edge_sigma_share * extent.max(0.0))
         * (1.0 + 0.5 * (1.0 - score))
 }
 
@@ -86,6 +99,7 @@ pub fn residuals(
         1.0
     };
     let sigma_e = edge_sigma(o, params) * cut;
+    let sigma_side = side_sigma(o, params) * cut;
     let (sh, sv) = (o.tower.sigma_horizontal_m, o.tower.sigma_vertical_m);
     // A survey error moves the whole tower: sideways by sh, in range by sh, up by sv.
     let survey_v = |p: &Projected| {
@@ -96,8 +110,9 @@ pub fn residuals(
     if usable.centre {
         let predicted = 0.5 * (top.u + foot.u);
         let width_term = params.centre_width_share * b.width();
-        let sigma2 =
-            0.5 * sigma_e * sigma_e + width_term * width_term + (k.fx * sh / foot.depth).powi(2);
+        let sigma2 = 0.5 * sigma_side * sigma_side
+            + width_term * width_term
+            + (k.fx * sh / foot.depth).powi(2);
         out.push(Residual {
             r: b.center_x() - predicted,
             jacobian: 0.5 * (top.du + foot.du),

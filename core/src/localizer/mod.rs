@@ -59,8 +59,9 @@ pub struct LocalizerParams {
     /// Edges of small boxes are noisier: sigma = edge_sigma_px * (1 + small_box_px / h).
     pub small_box_px: f64,
     /// A learned detector's edges stray in proportion to the box, as its
-    /// regression is trained on IoU: this share of the box height adds to
-    /// the spread (0 for the simulator's oracle, whose noise is in pixels).
+    /// regression is trained on IoU: this share of the box's height adds to
+    /// the spread of its top and bottom, and of its width to that of its
+    /// sides (0 for the simulator's oracle, whose noise is in pixels).
     pub edge_sigma_share: f64,
     /// A learned detector seldom carries a box to the image's edge when the
     /// frame cuts a near tower: it stops tens of pixels short, where a foot,

@@ -828,9 +828,10 @@ mod tests {
                 .iter()
                 .map(|&(i, b)| {
                     let probe = Observation::new(&towers[i], b, 1.0);
-                    let s = super::super::measurement::edge_sigma(&probe, noise);
-                    let mut n = || s * rng.sample::<f64, _>(StandardNormal);
-                    let (dl, dt, dr, db) = (n(), n(), n(), n());
+                    let ends = super::super::measurement::edge_sigma(&probe, noise);
+                    let sides = super::super::measurement::side_sigma(&probe, noise);
+                    let mut n = |s: f64| s * rng.sample::<f64, _>(StandardNormal);
+                    let (dl, dt, dr, db) = (n(sides), n(ends), n(sides), n(ends));
                     Observation::new(
                         &towers[i],
                         PixelBox::new(b.left + dl, b.top + dt, b.right + dr, b.bottom + db),

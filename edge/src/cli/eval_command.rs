@@ -88,8 +88,9 @@ pub enum EvalCommand {
         /// (default: the daemon's, `detector.edge_sigma_px`).
         #[arg(long)]
         edge_sigma_px: Option<f64>,
-        /// The share of the box height that adds to that spread for the YOLO
-        /// runs (default: the daemon's, `detector.edge_sigma_share`).
+        /// The share of the box's size (its height for its ends, its width
+        /// for its sides) that adds to that spread for the YOLO runs
+        /// (default: the daemon's, `detector.edge_sigma_share`).
         #[arg(long)]
         edge_sigma_share: Option<f64>,
         /// The share of the box height within which a box's end near the

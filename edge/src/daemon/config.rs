@@ -524,7 +524,7 @@ impl Default for DetectorSection {
 /// The box-edge spread the localizer assumes for a model, pixels (see `edge_sigma_px`).
 pub const YOLO_EDGE_SIGMA_PX: f64 = 1.0;
 
-/// The share of the box height that adds to it (see `edge_sigma_share`).
+/// The share of the box size that adds to it (see `edge_sigma_share`).
 pub const YOLO_EDGE_SIGMA_SHARE: f64 = 0.025;
 
 /// How near the border, as a share of the box height, a box's side is taken

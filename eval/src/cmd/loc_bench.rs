@@ -114,6 +114,13 @@ pub struct BenchRow {
     /// The same spread of each edge's error as a share of the true box's
     /// height: what `detector.edge_sigma_share` stands for.
     pub edge_error_share: Option<(f64, f64)>,
+    /// The same spread, as a share of the true height, of the box's height
+    /// (bottom minus top) and of its middle row. Edges that err together
+    /// leave the height, which gives the range, better than either edge.
+    pub height_middle_error_share: Option<(f64, f64)>,
+    /// The same spread of the box's centre column, as a share of the true
+    /// box's width: what the share stands for on the box's sides.
+    pub centre_error_share: Option<f64>,
     /// Every frame, for a closer look (written as CSV, not in the JSON).
     #[serde(skip)]
     pub per_frame: Vec<FrameRow>,
@@ -241,6 +248,8 @@ pub fn fly(
     let mut pipeline = Pipeline::new(config, map.clone());
     let (mut tops, mut bottoms) = (Vec::new(), Vec::new());
     let (mut top_shares, mut bottom_shares) = (Vec::new(), Vec::new());
+    let (mut height_shares, mut middle_shares) = (Vec::new(), Vec::new());
+    let mut centre_shares = Vec::new();
     // (frames with a tower in view, of them with a fix), level and banked.
     let (mut level, mut banked) = ((0usize, 0usize), (0usize, 0usize));
     let renderer = detector.as_ref().map(|_| scenario.renderer());
@@ -270,6 +279,9 @@ pub fn fly(
                     bottoms.push(bottom);
                     top_shares.push(top / t.bbox.height());
                     bottom_shares.push(bottom / t.bbox.height());
+                    height_shares.push((bottom - top) / t.bbox.height());
+                    middle_shares.push(0.5 * (top + bottom) / t.bbox.height());
+                    centre_shares.push((d.bbox.center_x() - t.bbox.center_x()) / t.bbox.width());
                 }
             }
         }
@@ -366,6 +378,9 @@ pub fn fly(
         fix_rate_banked: (banked.0, banked.1 as f64 / banked.0.max(1) as f64),
         edge_error_px: robust_sigma(&mut tops).zip(robust_sigma(&mut bottoms)),
         edge_error_share: robust_sigma(&mut top_shares).zip(robust_sigma(&mut bottom_shares)),
+        height_middle_error_share: robust_sigma(&mut height_shares)
+            .zip(robust_sigma(&mut middle_shares)),
+        centre_error_share: robust_sigma(&mut centre_shares),
         per_frame,
     })
 }
@@ -538,6 +553,8 @@ fn pooled<'a>(rows: impl Iterator<Item = &'a BenchRow>) -> BenchRow {
         fix_rate_banked: pool_rate(rows.iter().map(|r| r.fix_rate_banked)),
         edge_error_px: None,
         edge_error_share: None,
+        height_middle_error_share: None,
+        centre_error_share: None,
         per_frame: Vec::new(),
     }
 }
@@ -566,6 +583,18 @@ pub fn write_all(options: &LocBenchOptions, out: &Path) -> anyhow::Result<()> {
                 r.detector,
                 100.0 * top_share,
                 100.0 * bottom_share
+            );
+        }
+        if let (Some((height, middle)), Some(centre)) =
+            (r.height_middle_error_share, r.centre_error_share)
+        {
+            println!(
+                "world {} {}: box height against truth, robust sigma {:.1} % of the height; middle row {:.1} %; centre column {:.1} % of the width",
+                r.world_seed,
+                r.detector,
+                100.0 * height,
+                100.0 * middle,
+                100.0 * centre
             );
         }
     }
