@@ -306,13 +306,13 @@ pub struct DetectorSection {
     /// tower's, in pixels of the camera's frame, for any box: the localizer's
     /// measurement noise with this detector, with `edge_sigma_share`.
     pub edge_sigma_px: f64,
-    /// The share of each box's height that adds to `edge_sigma_px`: a
-    /// learned detector's edges stray in proportion to the box (the shipped
-    /// INT8 model's robust spread on `bench-localization`'s flights is 2.4
-    /// to 4.4 % of the box height; the default keeps to the low end, as
-    /// `edge_sigma_px` and the small-box term add to it. With less, the
-    /// benchmark's 2-sigma coverage comes into its band (97.2 % at 1 %), but
-    /// a survey flight over another world loses 0.6 m of RMS).
+    /// The share of each box's height (for its top and bottom) and width
+    /// (for its sides) that adds to `edge_sigma_px`: a learned detector's
+    /// edges stray in proportion to the box (the shipped INT8 model's robust
+    /// spread on `bench-localization`'s flights is 2.4 to 4.4 % of the box
+    /// height; the default keeps to the low end, as `edge_sigma_px` and the
+    /// small-box term add to it. With less, the benchmark's 2-sigma coverage
+    /// comes into its band (92-98 % at 1 %), but its fixes err more).
     pub edge_sigma_share: f64,
     /// A side of a box within this share of its height of the image's border
     /// is taken as cut, not as the tower's top, foot or axis: the model stops
