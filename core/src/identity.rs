@@ -95,9 +95,6 @@ pub struct Identity {
     /// track id -> frames its binding disagreed with a trusted pose, less
     /// those it agreed since.
     strikes: HashMap<u64, u32>,
-    /// Tracks whose binding this frame's box speaks against while most
-    /// bindings agree: left out for the frame, bound as before after it.
-    doubted: Vec<u64>,
 }
 
 impl Identity {
@@ -241,7 +238,6 @@ impl Identity {
         self.bindings.retain(|id, _| live_track_ids.contains(id));
         self.pinned.retain(|id, _| live_track_ids.contains(id));
         self.strikes.retain(|id, _| live_track_ids.contains(id));
-        self.doubted.clear();
         let camera_from_world = camera.world_from_camera(guess).inverse();
         let image = (
             f64::from(camera.intrinsics.width),
@@ -271,14 +267,16 @@ impl Identity {
         } else {
             Vec::new()
         };
-        if guess_trusted {
-            self.reassign(tracks, &near, &predict, image, map);
-        }
+        let doubted = if guess_trusted {
+            self.reassign(tracks, &near, &predict, image, map)
+        } else {
+            Vec::new()
+        };
         self.bind_unbound(tracks, &near, image, map, guess_trusted);
         tracks
             .iter()
             .map(|t| {
-                if self.doubted.contains(&t.track_id) {
+                if doubted.contains(&t.track_id) {
                     None
                 } else {
                     self.bindings.get(&t.track_id).copied()
@@ -294,6 +292,8 @@ impl Identity {
     /// the matching puts it (or unbind it).
     /// Matching jointly undoes swaps: two tracks each bound to the other's
     /// tower can only be put right together, never one by one.
+    /// Returns the tracks whose binding this frame's box speaks against while
+    /// most bindings agree: left out for the frame, bound as before after it.
     fn reassign(
         &mut self,
         tracks: &[TrackOutput],
@@ -301,13 +301,13 @@ impl Identity {
         predict: &dyn Fn(usize) -> Option<Prediction>,
         image: (f64, f64),
         map: &LandmarkMap,
-    ) {
+    ) -> Vec<u64> {
         let open: Vec<&TrackOutput> = tracks
             .iter()
             .filter(|t| !self.pinned.contains_key(&t.track_id))
             .collect();
         if !open.iter().any(|t| self.bindings.contains_key(&t.track_id)) {
-            return;
+            return Vec::new();
         }
         let pinned_towers: Vec<usize> = self.pinned.values().flatten().copied().collect();
         // The nearby towers and any bound one that is not among them.
@@ -373,8 +373,8 @@ impl Identity {
         // hand the localizer the wrong tower; when most bindings agree with
         // the guess, the guess is the better judge of that frame. When most
         // disagree, the guess itself is in doubt, and the bindings stand.
-        if doubted.len() < agreeing {
-            self.doubted = doubted;
+        if doubted.len() >= agreeing {
+            doubted.clear();
         }
         for (track, wanted) in moves {
             self.strikes.remove(&track);
@@ -385,6 +385,7 @@ impl Identity {
                 self.bindings.insert(track, tower);
             }
         }
+        doubted
     }
 
     /// Binds the tracks that have no tower to the free nearby towers of their
