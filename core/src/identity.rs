@@ -4,11 +4,13 @@
 //! image from the current pose guess, and unbound tracks are matched to free
 //! towers by a Hungarian assignment on bearing and size. A binding holds until its
 //! track ends, unless a trusted pose keeps putting the track on another tower
-//! (then it moves) or on none; an operator's correction pins it.
+//! (then it moves) or on none; an operator's correction pins it. With a
+//! trusted guess, a frame whose box speaks against its track's binding, or
+//! fits a neighbour as well, leaves the track out for that frame only.
 
 use std::collections::HashMap;
 
-use towernav_geometry::{Cut, PinholeCamera, Pose};
+use towernav_geometry::{Cut, PinholeCamera, PixelBox, Pose};
 
 use crate::assignment::max_score_matching;
 use crate::landmarks::LandmarkMap;
@@ -51,7 +53,9 @@ pub struct IdentityParams {
     /// An unbound track is bound only when its best tower fits better than
     /// any other free one by this much: a far box between two towers of a
     /// row waits until it grows or the guess tightens, rather than take a
-    /// coin toss that the localizer then trusts.
+    /// coin toss that the localizer then trusts. A bound track whose box
+    /// fits another tower within this margin of its own is, with a trusted
+    /// guess, left out for the frame.
     pub ambiguity_margin: f64,
 }
 
@@ -188,10 +192,11 @@ impl Identity {
             return None;
         }
         // A near tower's box centre strays from its axis (cross-arms seen obliquely).
+        let bearing_sigma_here = bearing_sigma + 0.08 * b.width();
         let bearing = if cut_side {
-            0.0
+            visible_side_offset(b, cut, predicted) / bearing_sigma_here
         } else {
-            (b.center_x() - predicted.u) / (bearing_sigma + 0.08 * b.width())
+            (b.center_x() - predicted.u) / bearing_sigma_here
         };
         let size = if predicted.height <= 0.0 {
             0.0
@@ -365,15 +370,19 @@ impl Identity {
             };
             if *strikes >= p.release_after {
                 moves.push((t.track_id, wanted));
-            } else if wanted != Some(bound) {
+            } else if wanted != Some(bound) || self.unclear(t, bound, &towers, image, map) {
+                if wanted == Some(bound) {
+                    agreeing -= 1;
+                }
                 doubted.push(t.track_id);
             }
         }
-        // A box that flickers onto a neighbour of its tower for a frame would
-        // hand the localizer the wrong tower; when most bindings agree with
+        // A box that flickers onto a neighbour of its tower for a frame, or
+        // that one box drawn across two towers puts between them, would hand
+        // the localizer the wrong tower; when no fewer bindings agree with
         // the guess, the guess is the better judge of that frame. When most
         // disagree, the guess itself is in doubt, and the bindings stand.
-        if doubted.len() >= agreeing {
+        if doubted.len() > agreeing {
             doubted.clear();
         }
         for (track, wanted) in moves {
@@ -386,6 +395,33 @@ impl Identity {
             }
         }
         doubted
+    }
+
+    /// Whether a bound track's box fails to tell its own tower from another
+    /// nearby one (free or held) by `ambiguity_margin`, with a trusted guess:
+    /// the matching keeps a binding whose tower another track holds, or that
+    /// wins by the hysteresis margin alone, but this frame's box says nothing
+    /// for it. A box with no evidence (cut on two sides) is never unclear.
+    fn unclear(
+        &self,
+        track: &TrackOutput,
+        bound: usize,
+        towers: &[(usize, Option<Prediction>)],
+        image: (f64, f64),
+        map: &LandmarkMap,
+    ) -> bool {
+        let at = |&(tower, predicted): &(usize, Option<Prediction>)| {
+            let pred = comparable(track, tower, predicted, map)?;
+            self.distance(track, pred, image, true)
+        };
+        let Some(own) = towers.iter().find(|(i, _)| *i == bound).and_then(at) else {
+            return false;
+        };
+        towers
+            .iter()
+            .filter(|(i, _)| *i != bound)
+            .filter_map(at)
+            .any(|d| d < self.params.gate && d < own + self.params.ambiguity_margin)
     }
 
     /// Binds the tracks that have no tower to the free nearby towers of their
@@ -436,6 +472,24 @@ impl Identity {
             }
             self.bindings.extend(chosen);
         }
+    }
+}
+
+/// How far, pixels, the side of a box cut by the image's left or right border
+/// that is still in view lies outside where the predicted tower could put it:
+/// between the tower's axis and half its height beyond (no tower is wider
+/// than it is tall). A box cut at the left border with its right side at 60 px
+/// is not a tower whose axis stands 700 px outside the image.
+fn visible_side_offset(b: &PixelBox, cut: Cut, predicted: Prediction) -> f64 {
+    let half_width = 0.5 * predicted.height.max(0.0);
+    let outside =
+        |edge: f64, near: f64, far: f64| (near.min(far) - edge).max(edge - near.max(far)).max(0.0);
+    if cut.left && !cut.right {
+        outside(b.right, predicted.u, predicted.u + half_width)
+    } else if cut.right && !cut.left {
+        outside(b.left, predicted.u, predicted.u - half_width)
+    } else {
+        0.0
     }
 }
 
@@ -689,6 +743,78 @@ mod tests {
             identity.update(&flicker[2..], &[9], trusted, towers),
             [Some(2)]
         );
+    }
+
+    #[test]
+    fn a_second_box_on_a_held_tower_is_not_handed_over_as_its_neighbour() {
+        // The detector's two boxes on one tower of a row: the tracker's second
+        // track there is still bound to the row's next tower, which its box no
+        // longer shows. The matching keeps it (its tower's rival is held), the
+        // box does not: it is left out for the frame.
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        let map = map_of(&[
+            ("A1", 100.0, 30.0),
+            ("A2", 100.0, -30.0),
+            ("B1", 200.0, 0.0),
+            ("B2", 260.0, 0.0),
+        ]);
+        let on = |tower: usize, track: u64| observe(&pose, &camera, &map, tower, track);
+        let ids = [7, 8, 9, 10];
+        let towers = || vec![0, 1, 2, 3];
+        let trusted = view(&pose, &camera, &map, true);
+        let mut identity = Identity::new(IdentityParams::default());
+        let steady = [on(0, 7), on(1, 8), on(2, 9), on(3, 10)];
+        let bound = identity.update(&steady, &ids, trusted, towers);
+        assert_eq!(bound, [Some(0), Some(1), Some(2), Some(3)]);
+        let doubled = [on(0, 7), on(1, 8), on(2, 9), on(2, 10)];
+        let bound = identity.update(&doubled, &ids, trusted, towers);
+        assert_eq!(bound, [Some(0), Some(1), Some(2), None]);
+        let bound = identity.update(&steady, &ids, trusted, towers);
+        assert_eq!(bound[3], Some(3), "the binding itself is kept");
+    }
+
+    #[test]
+    fn a_box_cut_at_the_border_is_judged_by_the_side_still_in_view() {
+        // Cut at the left border, its right side at 59 px: the tower whose
+        // axis stands at 25 px fits; one 700 px outside the image, of the
+        // same size, does not, and neither does one whose axis is in view
+        // right of the box.
+        let identity = Identity::new(IdentityParams::default());
+        let track = TrackOutput {
+            track_id: 7,
+            bbox: PixelBox::new(0.0, 244.0, 59.0, 367.0),
+            tower_type: TowerType::A,
+            score: 0.9,
+        };
+        let image = (1280.0, 720.0);
+        let at = |u: f64| Prediction {
+            u,
+            top: 250.0,
+            foot: 360.0,
+            height: 110.0,
+        };
+        let gate = IdentityParams::default().gate;
+        let d = |u: f64| {
+            identity
+                .distance(&track, at(u), image, true)
+                .expect("evidence")
+        };
+        assert!(d(25.0) < 2.0, "{}", d(25.0));
+        assert!(d(-687.0) > gate, "{}", d(-687.0));
+        assert!(d(120.0) > gate, "{}", d(120.0));
+        // Cut at the right border, the same holds from its left side.
+        let mirrored = TrackOutput {
+            bbox: PixelBox::new(1221.0, 244.0, 1280.0, 367.0),
+            ..track
+        };
+        let d = |u: f64| {
+            identity
+                .distance(&mirrored, at(u), image, true)
+                .expect("evidence")
+        };
+        assert!(d(1255.0) < 2.0, "{}", d(1255.0));
+        assert!(d(1967.0) > gate, "{}", d(1967.0));
     }
 
     #[test]
