@@ -80,10 +80,18 @@ impl Default for IdentityParams {
 struct Prediction {
     /// The column of its axis, halfway between apex and foot.
     u: f64,
+    /// Half the column difference between apex and foot: a rolled camera
+    /// sees the axis lean.
+    lean: f64,
     top: f64,
     foot: f64,
     height: f64,
 }
+
+/// A box within this normalised distance of its own tower is taken as on it,
+/// however near a neighbour's prediction: the track's history then decides,
+/// as it does for far towers of a row whose predictions stand close.
+const CLEAR_FIT: f64 = 1.0;
 
 /// The score that keeps a binding no evidence speaks against; just above
 /// the matcher's resolution.
@@ -254,6 +262,7 @@ impl Identity {
             let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
             Some(Prediction {
                 u: 0.5 * (foot.x + top.x),
+                lean: 0.5 * (top.x - foot.x),
                 top: top.y,
                 foot: foot.y,
                 height: foot.y - top.y,
@@ -397,8 +406,9 @@ impl Identity {
         doubted
     }
 
-    /// Whether a bound track's box fails to tell its own tower from another
-    /// nearby one (free or held) by `ambiguity_margin`, with a trusted guess:
+    /// Whether a bound track's box, not close to its own tower's prediction,
+    /// fails to tell it from another nearby one (free or held) by
+    /// `ambiguity_margin`, with a trusted guess:
     /// the matching keeps a binding whose tower another track holds, or that
     /// wins by the hysteresis margin alone, but this frame's box says nothing
     /// for it. A box with no evidence (cut on two sides) is never unclear.
@@ -417,6 +427,9 @@ impl Identity {
         let Some(own) = towers.iter().find(|(i, _)| *i == bound).and_then(at) else {
             return false;
         };
+        if own <= CLEAR_FIT {
+            return false;
+        }
         towers
             .iter()
             .filter(|(i, _)| *i != bound)
@@ -476,18 +489,18 @@ impl Identity {
 }
 
 /// How far, pixels, the side of a box cut by the image's left or right border
-/// that is still in view lies outside where the predicted tower could put it:
-/// between the tower's axis and half its height beyond (no tower is wider
-/// than it is tall). A box cut at the left border with its right side at 60 px
-/// is not a tower whose axis stands 700 px outside the image.
+/// that is still in view lies beyond the farthest the predicted tower reaches
+/// into the image: its axis (top to foot, leaning with the roll) and half its
+/// height beyond (no tower is wider than it is tall). A box cut at the left
+/// border with its right side at 60 px is not a tower whose axis stands 700 px
+/// outside the image. Nearer than that, the side says nothing: the box of a
+/// tower seen close and obliquely may end anywhere short of its far side.
 fn visible_side_offset(b: &PixelBox, cut: Cut, predicted: Prediction) -> f64 {
-    let half_width = 0.5 * predicted.height.max(0.0);
-    let outside =
-        |edge: f64, near: f64, far: f64| (near.min(far) - edge).max(edge - near.max(far)).max(0.0);
+    let reach = 0.5 * predicted.height.max(0.0) + predicted.lean.abs();
     if cut.left && !cut.right {
-        outside(b.right, predicted.u, predicted.u + half_width)
+        (b.right - (predicted.u + reach)).max(0.0)
     } else if cut.right && !cut.left {
-        outside(b.left, predicted.u, predicted.u - half_width)
+        ((predicted.u - reach) - b.left).max(0.0)
     } else {
         0.0
     }
@@ -778,8 +791,7 @@ mod tests {
     fn a_box_cut_at_the_border_is_judged_by_the_side_still_in_view() {
         // Cut at the left border, its right side at 59 px: the tower whose
         // axis stands at 25 px fits; one 700 px outside the image, of the
-        // same size, does not, and neither does one whose axis is in view
-        // right of the box.
+        // same size, does not.
         let identity = Identity::new(IdentityParams::default());
         let track = TrackOutput {
             track_id: 7,
@@ -790,6 +802,7 @@ mod tests {
         let image = (1280.0, 720.0);
         let at = |u: f64| Prediction {
             u,
+            lean: 0.0,
             top: 250.0,
             foot: 360.0,
             height: 110.0,
@@ -802,7 +815,6 @@ mod tests {
         };
         assert!(d(25.0) < 2.0, "{}", d(25.0));
         assert!(d(-687.0) > gate, "{}", d(-687.0));
-        assert!(d(120.0) > gate, "{}", d(120.0));
         // Cut at the right border, the same holds from its left side.
         let mirrored = TrackOutput {
             bbox: PixelBox::new(1221.0, 244.0, 1280.0, 367.0),
