@@ -58,6 +58,13 @@ pub struct FilterParams {
     /// the time since the last estimate (plus `restart_slack_m`) of it.
     pub max_speed_mps: f64,
     pub restart_slack_m: f64,
+    /// The published position covariance is the filter's times this. The
+    /// filter weighs and gates with a deliberately wide noise model (a
+    /// detector's box errors are heavy-tailed); what the autopilot gets is
+    /// scaled to the errors a benchmark measured for the detector, so that
+    /// its 2-sigma ellipse holds about 95 % of them. The report bound
+    /// applies to the filter's own covariance, before the scale.
+    pub report_covariance_scale: f64,
 }
 
 impl Default for FilterParams {
@@ -77,6 +84,7 @@ impl Default for FilterParams {
             min_restart_towers: 2,
             max_speed_mps: 20.0,
             restart_slack_m: 30.0,
+            report_covariance_scale: 1.0,
         }
     }
 }
@@ -247,6 +255,10 @@ impl PoseFilter {
             Some(f) if verdict != FixVerdict::Rejected => (f.yaw, f.covariance[(3, 3)]),
             _ => (imu_yaw, imu_yaw_variance),
         };
+        let scale = self.params.report_covariance_scale;
+        if scale.is_finite() && scale > 0.0 {
+            covariance.fixed_view_mut::<3, 3>(0, 0).scale_mut(scale);
+        }
         covariance[(3, 3)] = yaw_var;
         let estimate = Estimate {
             position_in_world: Point3::from(s.x.fixed_rows::<3>(0).into_owned()),
@@ -523,6 +535,43 @@ mod tests {
             sigma <= FilterParams::default().max_report_sigma_m,
             "{sigma}"
         );
+    }
+
+    #[test]
+    fn the_published_covariance_is_scaled_but_the_report_bound_is_the_filters() {
+        let run = |scale: f64| {
+            let mut f = PoseFilter::new(FilterParams {
+                report_covariance_scale: scale,
+                ..FilterParams::default()
+            });
+            let mut out = Vec::new();
+            for i in 0..60 {
+                let t = f64::from(i) / 30.0;
+                // Fixes of 4 m: the filter's own 1-sigma stays above the 5 m
+                // bound for the first frames, whatever the scale.
+                let (e, _) = f.step(t, Some(&fix_at(10.0 * t, 0.0, 4.0)), 0.0, 1e-4);
+                out.push(e.map(|e| (e.position_in_world, e.covariance)));
+            }
+            out
+        };
+        let (whole, quarter) = (run(1.0), run(0.25));
+        assert!(
+            whole[0].is_none() && quarter[0].is_none(),
+            "held back alike"
+        );
+        let mut told = 0;
+        for (a, b) in whole.iter().zip(&quarter) {
+            assert_eq!(a.is_some(), b.is_some(), "the same frames are told");
+            if let (Some((pa, ca)), Some((pb, cb))) = (a, b) {
+                told += 1;
+                assert_eq!(pa, pb, "the estimate itself is the same");
+                for i in 0..3 {
+                    assert!((cb[(i, i)] - 0.25 * ca[(i, i)]).abs() < 1e-9);
+                }
+                assert_eq!(ca[(3, 3)], cb[(3, 3)], "yaw is not scaled");
+            }
+        }
+        assert!(told > 30, "{told} told");
     }
 
     #[test]

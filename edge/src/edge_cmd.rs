@@ -158,6 +158,13 @@ fn types_for(
     Ok(types)
 }
 
+/// The bound on the published horizontal 1-sigma that ends a 2-D coast: the
+/// filter's report bound carried through the covariance's scale, so the link
+/// and the filter draw the line at the same place.
+fn coast_max_sigma_m(config: &EdgeConfig) -> f64 {
+    config.pipeline.max_report_sigma_m * config.covariance_scale().sqrt()
+}
+
 /// The core's MAVLink link, its clock set from this machine's until the
 /// autopilot's SYSTEM_TIME says otherwise.
 fn autopilot_link(config: &EdgeConfig, datum: Datum) -> AutopilotLink {
@@ -168,7 +175,7 @@ fn autopilot_link(config: &EdgeConfig, datum: Datum) -> AutopilotLink {
     AutopilotLink::new(
         config
             .mavlink
-            .link_config(accel_sigma, config.pipeline.max_report_sigma_m),
+            .link_config(accel_sigma, coast_max_sigma_m(config)),
         datum,
         Instant::now(),
         unix_now_us,
@@ -195,6 +202,7 @@ pub(crate) fn pipeline_for(
     }
     if let Some(filter) = pipeline_config.filter.as_mut() {
         filter.max_report_sigma_m = config.pipeline.max_report_sigma_m;
+        filter.report_covariance_scale = config.covariance_scale();
     }
     if !config.pipeline.filter {
         pipeline_config.filter = None;

@@ -102,6 +102,10 @@ pub enum EvalCommand {
         /// the YOLO runs (default: the daemon's, `detector.cut_sigma_scale`).
         #[arg(long)]
         cut_sigma_scale: Option<f64>,
+        /// The published covariance, times the filter's, for the YOLO runs
+        /// (default: the daemon's, `detector.covariance_scale`).
+        #[arg(long)]
+        covariance_scale: Option<f64>,
         /// The filter publishes an estimate only while its horizontal
         /// 1-sigma is within this, metres, in both runs (default: the
         /// daemon's, `pipeline.max_report_sigma_m`).
@@ -151,6 +155,7 @@ impl EvalCommand {
                 edge_sigma_share,
                 cut_margin_share,
                 cut_sigma_scale,
+                covariance_scale,
                 max_report_sigma,
                 velocity_sigma,
                 no_barometer,
@@ -176,6 +181,7 @@ impl EvalCommand {
                     edge_sigma_share: Some(edge_sigma_share.unwrap_or(section.edge_sigma_share)),
                     cut_margin_share: Some(cut_margin_share.unwrap_or(section.cut_margin_share)),
                     cut_sigma_scale: Some(cut_sigma_scale.unwrap_or(section.cut_sigma_scale)),
+                    covariance_scale: Some(covariance_scale.unwrap_or(section.covariance_scale)),
                     max_report_sigma_m: Some(
                         max_report_sigma.unwrap_or(
                             towernav_edge::daemon::config::PipelineSection::default()

@@ -44,6 +44,9 @@ pub struct LocBenchOptions {
     /// The edge spread of a cut box, times a whole one's, for the YOLO runs
     /// (`None`: the pipeline's).
     pub cut_sigma_scale: Option<f64>,
+    /// The published covariance, times the filter's, for the YOLO runs
+    /// (`None`: unscaled).
+    pub covariance_scale: Option<f64>,
     /// The filter publishes an estimate only while its horizontal 1-sigma
     /// is within this, metres, in both runs (`None`: the filter's default).
     pub max_report_sigma_m: Option<f64>,
@@ -72,6 +75,8 @@ pub struct FlyOptions {
     /// The edge spread of a cut box, times a whole one's (`None`: the
     /// pipeline's default).
     pub cut_sigma_scale: Option<f64>,
+    /// The published covariance, times the filter's (`None`: unscaled).
+    pub covariance_scale: Option<f64>,
     /// The filter's bound on a published estimate's horizontal 1-sigma,
     /// metres (`None`: the filter's default).
     pub max_report_sigma_m: Option<f64>,
@@ -234,6 +239,9 @@ pub fn fly(
     }
     if let (Some(sigma), Some(filter)) = (options.max_report_sigma_m, config.filter.as_mut()) {
         filter.max_report_sigma_m = sigma;
+    }
+    if let (Some(scale), Some(filter)) = (options.covariance_scale, config.filter.as_mut()) {
+        filter.report_covariance_scale = scale;
     }
     config.method = options.method;
     let mut velocity_noise = ChaCha8Rng::seed_from_u64(scenario.seed ^ 0x005e_ed0f_u64);
@@ -441,6 +449,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
             edge_sigma_share: None,
             cut_margin_share: None,
             cut_sigma_scale: None,
+            covariance_scale: None,
             max_report_sigma_m: options.max_report_sigma_m,
             velocity_sigma_mps: options.velocity_sigma_mps,
             barometer,
@@ -459,6 +468,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
                 edge_sigma_share: options.edge_sigma_share,
                 cut_margin_share: options.cut_margin_share,
                 cut_sigma_scale: options.cut_sigma_scale,
+                covariance_scale: options.covariance_scale,
                 max_report_sigma_m: options.max_report_sigma_m,
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
