@@ -5,8 +5,8 @@
 //! towers by a Hungarian assignment on bearing and size. A binding holds until its
 //! track ends, unless a trusted pose keeps putting the track on another tower
 //! (then it moves) or on none; an operator's correction pins it. With a
-//! trusted guess, a frame whose box speaks against its track's binding, or
-//! fits a neighbour as well, leaves the track out for that frame only.
+//! trusted guess, a frame whose box speaks against its track's binding
+//! leaves the track out for that frame only.
 
 use std::collections::HashMap;
 
@@ -53,9 +53,7 @@ pub struct IdentityParams {
     /// An unbound track is bound only when its best tower fits better than
     /// any other free one by this much: a far box between two towers of a
     /// row waits until it grows or the guess tightens, rather than take a
-    /// coin toss that the localizer then trusts. A bound track whose box
-    /// fits another tower within this margin of its own is, with a trusted
-    /// guess, left out for the frame.
+    /// coin toss that the localizer then trusts.
     pub ambiguity_margin: f64,
 }
 
@@ -87,11 +85,6 @@ struct Prediction {
     foot: f64,
     height: f64,
 }
-
-/// A box within this normalised distance of its own tower is taken as on it,
-/// however near a neighbour's prediction: the track's history then decides,
-/// as it does for far towers of a row whose predictions stand close.
-const CLEAR_FIT: f64 = 1.0;
 
 /// The score that keeps a binding no evidence speaks against; just above
 /// the matcher's resolution.
@@ -379,16 +372,12 @@ impl Identity {
             };
             if *strikes >= p.release_after {
                 moves.push((t.track_id, wanted));
-            } else if wanted != Some(bound) || self.unclear(t, bound, &towers, image, map) {
-                if wanted == Some(bound) {
-                    agreeing -= 1;
-                }
+            } else if wanted != Some(bound) {
                 doubted.push(t.track_id);
             }
         }
-        // A box that flickers onto a neighbour of its tower for a frame, or
-        // that one box drawn across two towers puts between them, would hand
-        // the localizer the wrong tower; when no fewer bindings agree with
+        // A box that flickers onto a neighbour of its tower for a frame would
+        // hand the localizer the wrong tower; when no fewer bindings agree with
         // the guess, the guess is the better judge of that frame. When most
         // disagree, the guess itself is in doubt, and the bindings stand.
         if doubted.len() > agreeing {
@@ -404,37 +393,6 @@ impl Identity {
             }
         }
         doubted
-    }
-
-    /// Whether a bound track's box, not close to its own tower's prediction,
-    /// fails to tell it from another nearby one (free or held) by
-    /// `ambiguity_margin`, with a trusted guess:
-    /// the matching keeps a binding whose tower another track holds, or that
-    /// wins by the hysteresis margin alone, but this frame's box says nothing
-    /// for it. A box with no evidence (cut on two sides) is never unclear.
-    fn unclear(
-        &self,
-        track: &TrackOutput,
-        bound: usize,
-        towers: &[(usize, Option<Prediction>)],
-        image: (f64, f64),
-        map: &LandmarkMap,
-    ) -> bool {
-        let at = |&(tower, predicted): &(usize, Option<Prediction>)| {
-            let pred = comparable(track, tower, predicted, map)?;
-            self.distance(track, pred, image, true)
-        };
-        let Some(own) = towers.iter().find(|(i, _)| *i == bound).and_then(at) else {
-            return false;
-        };
-        if own <= CLEAR_FIT {
-            return false;
-        }
-        towers
-            .iter()
-            .filter(|(i, _)| *i != bound)
-            .filter_map(at)
-            .any(|d| d < self.params.gate && d < own + self.params.ambiguity_margin)
     }
 
     /// Binds the tracks that have no tower to the free nearby towers of their
@@ -756,35 +714,6 @@ mod tests {
             identity.update(&flicker[2..], &[9], trusted, towers),
             [Some(2)]
         );
-    }
-
-    #[test]
-    fn a_second_box_on_a_held_tower_is_not_handed_over_as_its_neighbour() {
-        // The detector's two boxes on one tower of a row: the tracker's second
-        // track there is still bound to the row's next tower, which its box no
-        // longer shows. The matching keeps it (its tower's rival is held), the
-        // box does not: it is left out for the frame.
-        let camera = PinholeCamera::default_hd();
-        let pose = pose_at_20m();
-        let map = map_of(&[
-            ("A1", 100.0, 30.0),
-            ("A2", 100.0, -30.0),
-            ("B1", 200.0, 0.0),
-            ("B2", 260.0, 0.0),
-        ]);
-        let on = |tower: usize, track: u64| observe(&pose, &camera, &map, tower, track);
-        let ids = [7, 8, 9, 10];
-        let towers = || vec![0, 1, 2, 3];
-        let trusted = view(&pose, &camera, &map, true);
-        let mut identity = Identity::new(IdentityParams::default());
-        let steady = [on(0, 7), on(1, 8), on(2, 9), on(3, 10)];
-        let bound = identity.update(&steady, &ids, trusted, towers);
-        assert_eq!(bound, [Some(0), Some(1), Some(2), Some(3)]);
-        let doubled = [on(0, 7), on(1, 8), on(2, 9), on(2, 10)];
-        let bound = identity.update(&doubled, &ids, trusted, towers);
-        assert_eq!(bound, [Some(0), Some(1), Some(2), None]);
-        let bound = identity.update(&steady, &ids, trusted, towers);
-        assert_eq!(bound[3], Some(3), "the binding itself is kept");
     }
 
     #[test]
