@@ -714,6 +714,13 @@ mod tests {
             identity.update(&flicker[2..], &[9], trusted, towers),
             [Some(2)]
         );
+        // With one binding that agrees beside it, a tie, the guess judges.
+        let mut identity = Identity::new(IdentityParams::default());
+        identity.update(&steady[1..], &[8, 9], trusted, towers);
+        assert_eq!(
+            identity.update(&flicker[1..], &[8, 9], trusted, towers),
+            [Some(1), None]
+        );
     }
 
     #[test]
