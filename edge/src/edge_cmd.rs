@@ -159,8 +159,10 @@ fn types_for(
 }
 
 /// The bound on the published horizontal 1-sigma that ends a 2-D coast: the
-/// filter's report bound carried through the covariance's scale, so the link
-/// and the filter draw the line at the same place.
+/// filter's report bound carried through the covariance's scale. The link
+/// grows the published covariance between estimates with the velocity's
+/// spread, which is not scaled, so it draws the line a little before the
+/// filter does, never after.
 fn coast_max_sigma_m(config: &EdgeConfig) -> f64 {
     config.pipeline.max_report_sigma_m * config.covariance_scale().sqrt()
 }
