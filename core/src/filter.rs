@@ -1,6 +1,9 @@
 //! An EKF over position and velocity (constant-velocity model driven by white
 //! acceleration) that fuses per-frame fixes, gates them by their innovation,
 //! coasts through frames with no tower, and says when it has lost the pose.
+//! Between steps the horizontal velocity turns with the IMU's yaw: the UAV
+//! flies nose first, so a prediction through a turn with no tower in view
+//! follows it round instead of flying on along the old track.
 //!
 //! It reports an estimate only while its horizontal 1-sigma is within
 //! `max_report_sigma_m`, a fused fix as much as a coast: an estimate the
@@ -15,6 +18,8 @@
 //! last estimate at `max_speed_mps`.
 
 use nalgebra::{Matrix3, Matrix4, Matrix6, Point3, SMatrix, Vector3, Vector6};
+
+use towernav_geometry::frames::wrap_angle;
 
 use crate::localizer::Fix;
 
@@ -35,8 +40,10 @@ pub struct FilterParams {
     /// Chi-square gate on a 3-D velocity measurement's innovation (99.9 %).
     pub velocity_gate_chi2: f64,
     /// Velocity correlation time: with no fixes the predicted velocity decays
-    /// toward zero with this time constant, so a long gap (a turn) does not fly
-    /// the prediction off along the old track.
+    /// toward zero with this time constant (infinite: it holds). A UAV
+    /// flying a plan keeps its speed through a gap; a decaying velocity
+    /// left the prediction behind it, by a tower span after 17 s, and the
+    /// first box back was bound to the tower behind.
     pub velocity_tau_s: f64,
     pub restart_after_rejections: u32,
     /// Velocity spread at start, m/s.
@@ -65,6 +72,12 @@ pub struct FilterParams {
     /// its 2-sigma ellipse holds about 95 % of them. The report bound
     /// applies to the filter's own covariance, before the scale.
     pub report_covariance_scale: f64,
+    /// The horizontal velocity turns with the IMU's yaw between steps: a
+    /// UAV that looks where it flies keeps flying nose first through a turn
+    /// with no tower in view, and the prediction should follow it round
+    /// rather than fly on along the old track. Off for a platform that
+    /// crabs or strafes.
+    pub velocity_follows_heading: bool,
 }
 
 impl Default for FilterParams {
@@ -76,7 +89,7 @@ impl Default for FilterParams {
             max_coast_s: 20.0,
             max_report_sigma_m: 5.0,
             velocity_gate_chi2: 16.27,
-            velocity_tau_s: 8.0,
+            velocity_tau_s: f64::INFINITY,
             restart_after_rejections: 15,
             initial_velocity_sigma: 15.0,
             fix_covariance_scale: 3.0,
@@ -85,6 +98,7 @@ impl Default for FilterParams {
             max_speed_mps: 20.0,
             restart_slack_m: 30.0,
             report_covariance_scale: 1.0,
+            velocity_follows_heading: true,
         }
     }
 }
@@ -131,6 +145,8 @@ struct State {
     last_update_s: f64,
     /// The last accepted fix's position covariance.
     fix_covariance: Matrix3<f64>,
+    /// The IMU's yaw at `time_s`, when a step gave one.
+    yaw: Option<f64>,
 }
 
 impl PoseFilter {
@@ -209,19 +225,19 @@ impl PoseFilter {
         }
         let verdict = match (fix, self.state.is_some()) {
             (None, _) => {
-                self.predict(time_s);
+                self.predict(time_s, Some(imu_yaw));
                 FixVerdict::NoFix
             }
             (Some(f), false) => {
                 if self.may_start_from(time_s, f) {
-                    self.start(time_s, f);
+                    self.start(time_s, f, imu_yaw);
                     FixVerdict::Restarted
                 } else {
                     FixVerdict::Rejected
                 }
             }
             (Some(f), true) => {
-                self.predict(time_s);
+                self.predict(time_s, Some(imu_yaw));
                 if self.update(f) {
                     self.rejections = 0;
                     FixVerdict::Accepted
@@ -230,7 +246,7 @@ impl PoseFilter {
                     if self.rejections >= self.params.restart_after_rejections
                         && f.towers_used.len() >= self.params.min_restart_towers
                     {
-                        self.start(time_s, f);
+                        self.start(time_s, f, imu_yaw);
                         FixVerdict::Restarted
                     } else {
                         FixVerdict::Rejected
@@ -272,7 +288,7 @@ impl PoseFilter {
         (Some(estimate), verdict)
     }
 
-    fn start(&mut self, time_s: f64, fix: &Fix) {
+    fn start(&mut self, time_s: f64, fix: &Fix, imu_yaw: f64) {
         self.last_known = None;
         let mut x = Vector6::zeros();
         x.fixed_rows_mut::<3>(0)
@@ -291,23 +307,42 @@ impl PoseFilter {
             p,
             last_update_s: time_s,
             fix_covariance: fix.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
+            yaw: imu_yaw.is_finite().then_some(imu_yaw),
         });
         self.rejections = 0;
     }
 
-    fn predict(&mut self, time_s: f64) {
+    /// Advances the state to `time_s`; `yaw` is the IMU's then, if known.
+    fn predict(&mut self, time_s: f64, yaw: Option<f64>) {
         let params = self.params;
         let Some(s) = &mut self.state else { return };
+        let yaw = yaw.filter(|y| y.is_finite());
+        // The turn since the last step, applied to the velocity at its start.
+        let turn = match (s.yaw, yaw) {
+            (Some(before), Some(now)) if params.velocity_follows_heading => {
+                Some(wrap_angle(now - before))
+            }
+            _ => None,
+        };
+        if yaw.is_some() {
+            s.yaw = yaw;
+        }
         let dt = (time_s - s.time_s).max(0.0);
-        if dt == 0.0 {
+        if dt == 0.0 && turn.is_none() {
             return;
         }
         let (reach, keep) = velocity_decay(dt, params.velocity_tau_s);
-        let mut f = Matrix6::identity();
-        for i in 0..3 {
-            f[(i, i + 3)] = reach;
-            f[(i + 3, i + 3)] = keep;
+        let mut turn_v = Matrix3::identity();
+        if let Some(a) = turn {
+            let (sin, cos) = a.sin_cos();
+            turn_v[(0, 0)] = cos;
+            turn_v[(0, 1)] = -sin;
+            turn_v[(1, 0)] = sin;
+            turn_v[(1, 1)] = cos;
         }
+        let mut f = Matrix6::identity();
+        f.fixed_view_mut::<3, 3>(0, 3).copy_from(&(turn_v * reach));
+        f.fixed_view_mut::<3, 3>(3, 3).copy_from(&(turn_v * keep));
         let mut q = Matrix6::zeros();
         for i in 0..3 {
             let a2 = if i < 2 {
@@ -344,7 +379,7 @@ impl PoseFilter {
         {
             return false;
         }
-        self.predict(time_s);
+        self.predict(time_s, None);
         let Some(s) = &mut self.state else {
             return false;
         };
@@ -447,9 +482,9 @@ mod tests {
         );
         let gap = gap.expect("coasting");
         assert_eq!(verdict, FixVerdict::NoFix);
-        // Carried at 10 m/s, slowing with the velocity's 8 s correlation time.
+        // Carried on at 10 m/s.
         assert!(
-            (gap.position_in_world.x - 29.4).abs() < 2.0,
+            (gap.position_in_world.x - 30.0).abs() < 1.0,
             "{}",
             gap.position_in_world
         );
@@ -465,6 +500,44 @@ mod tests {
             f.step(t, Some(&fix_at(10.0 * t, 0.0, 1.0)), 0.0, 1e-4);
         }
         f
+    }
+
+    #[test]
+    fn the_prediction_turns_with_the_heading_through_a_gap() {
+        // East at 10 m/s, then no fix while the UAV turns left by 90 degrees
+        // over 3 s, nose first, and flies on north.
+        let predicted_after_turn = |follows: bool| {
+            let mut f = PoseFilter::new(FilterParams {
+                velocity_follows_heading: follows,
+                ..FilterParams::default()
+            });
+            for i in 0..=60 {
+                let t = f64::from(i) / 30.0;
+                f.step(t, Some(&fix_at(10.0 * t, 0.0, 1.0)), 0.0, 1e-4);
+            }
+            for i in 1..=180 {
+                let t = 2.0 + f64::from(i) / 30.0;
+                let yaw = (f64::from(i) / 90.0).min(1.0) * std::f64::consts::FRAC_PI_2;
+                f.step(t, None, yaw, 1e-4);
+            }
+            let s = f.state.as_ref().expect("still coasting");
+            (f.predicted_position(8.0).expect("coasting"), s.x[3], s.x[4])
+        };
+        let (turned, ve, vn) = predicted_after_turn(true);
+        assert!(
+            ve.abs() < 0.05 * vn && vn > 0.0,
+            "velocity {ve} east, {vn} north"
+        );
+        let (straight, ..) = predicted_after_turn(false);
+        // The nose-first path: a quarter circle of radius 30/pi m from
+        // (20, 0), then north for 3 s at 10 m/s.
+        let radius = 30.0 / std::f64::consts::PI;
+        let truth = Point3::new(20.0 + radius, radius + 30.0, 30.0);
+        let miss = |p: Point3<f64>| (p.xy() - truth.xy()).norm();
+        assert!(
+            miss(turned) < 0.5 * miss(straight),
+            "turned {turned} vs straight {straight}, truth {truth}"
+        );
     }
 
     /// Seconds of coast (from 2 s) until the filter stops reporting, and the
@@ -499,8 +572,7 @@ mod tests {
             with_velocity > 2.0 * alone,
             "{with_velocity} s with a velocity against {alone} s without"
         );
-        // The fused velocity carries the prediction at 10 m/s for 5 s; the
-        // prediction alone slows with the velocity's correlation time (57 m).
+        // The fused velocity carries the prediction at 10 m/s for 5 s.
         let mut g = tracked();
         for i in 1..=150 {
             let t = 2.0 + f64::from(i) / 30.0;
