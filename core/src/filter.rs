@@ -496,7 +496,11 @@ mod tests {
 
     /// Tracks a UAV flying east at 10 m/s for 2 s, then coasts.
     fn tracked() -> PoseFilter {
-        let mut f = PoseFilter::new(FilterParams::default());
+        tracked_with(FilterParams::default())
+    }
+
+    fn tracked_with(params: FilterParams) -> PoseFilter {
+        let mut f = PoseFilter::new(params);
         for i in 0..=60 {
             let t = f64::from(i) / 30.0;
             f.step(t, Some(&fix_at(10.0 * t, 0.0, 1.0)), 0.0, 1e-4);
@@ -509,14 +513,10 @@ mod tests {
         // East at 10 m/s, then no fix while the UAV turns left by 90 degrees
         // over 3 s, nose first, and flies on north.
         let predicted_after_turn = |follows: bool| {
-            let mut f = PoseFilter::new(FilterParams {
+            let mut f = tracked_with(FilterParams {
                 velocity_follows_heading: follows,
                 ..FilterParams::default()
             });
-            for i in 0..=60 {
-                let t = f64::from(i) / 30.0;
-                f.step(t, Some(&fix_at(10.0 * t, 0.0, 1.0)), 0.0, 1e-4);
-            }
             for i in 1..=180 {
                 let t = 2.0 + f64::from(i) / 30.0;
                 let yaw = (f64::from(i) / 90.0).min(1.0) * std::f64::consts::FRAC_PI_2;
