@@ -5,15 +5,17 @@
 //! towers by a Hungarian assignment on bearing and size. A binding holds until its
 //! track ends, unless a trusted pose keeps putting the track on another tower
 //! (then it moves) or on none; an operator's correction pins it. With a
-//! trusted guess, a frame whose box speaks against its track's binding
-//! leaves the track out for that frame only.
+//! trusted guess, a frame whose box speaks against its track's binding, or
+//! fits a neighbour about as well, leaves the track out for that frame only.
 
 use std::collections::HashMap;
+
+use nalgebra::Isometry3;
 
 use towernav_geometry::{Cut, PinholeCamera, PixelBox, Pose};
 
 use crate::assignment::max_score_matching;
-use crate::landmarks::LandmarkMap;
+use crate::landmarks::{LandmarkMap, MapTower};
 use crate::tracker::TrackOutput;
 
 /// What a frame's bindings are judged against: where the pipeline thinks the
@@ -51,9 +53,11 @@ pub struct IdentityParams {
     /// count as evidence against the current binding.
     pub switch_margin: f64,
     /// An unbound track is bound only when its best tower fits better than
-    /// any other free one by this much: a far box between two towers of a
-    /// row waits until it grows or the guess tightens, rather than take a
-    /// coin toss that the localizer then trusts.
+    /// any other nearby one, free or held, by this much: a far box between
+    /// two towers of a row waits until it grows or the guess tightens,
+    /// rather than take a coin toss that the localizer then trusts. With a
+    /// trusted guess, a bound track's box within this much of a neighbour is
+    /// left out of the frame.
     pub ambiguity_margin: f64,
 }
 
@@ -84,6 +88,26 @@ struct Prediction {
     top: f64,
     foot: f64,
     height: f64,
+}
+
+impl Prediction {
+    /// From the camera's pose guess (`camera_from_world`); `None` when the
+    /// apex or the foot is behind the camera.
+    fn of(
+        tower: &MapTower,
+        camera: &PinholeCamera,
+        camera_from_world: &Isometry3<f64>,
+    ) -> Option<Self> {
+        let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
+        let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
+        Some(Self {
+            u: 0.5 * (foot.x + top.x),
+            lean: 0.5 * (top.x - foot.x),
+            top: top.y,
+            foot: foot.y,
+            height: foot.y - top.y,
+        })
+    }
 }
 
 /// The score that keeps a binding no evidence speaks against; just above
@@ -147,6 +171,12 @@ impl Identity {
                 Some(t) => new_index(t).map(|n| (track, Some(n))),
             })
             .collect();
+    }
+
+    /// The tower a track is bound to, whether or not its box was left out
+    /// of the last frame.
+    pub fn binding(&self, track_id: u64) -> Option<usize> {
+        self.bindings.get(&track_id).copied()
     }
 
     pub fn is_pinned(&self, track_id: u64) -> bool {
@@ -249,18 +279,7 @@ impl Identity {
             f64::from(camera.intrinsics.width),
             f64::from(camera.intrinsics.height),
         );
-        let predict = |i: usize| -> Option<Prediction> {
-            let tower = &map.towers[i];
-            let foot = camera.project(&(camera_from_world * tower.foot_in_world))?;
-            let top = camera.project(&(camera_from_world * tower.top_in_world()))?;
-            Some(Prediction {
-                u: 0.5 * (foot.x + top.x),
-                lean: 0.5 * (top.x - foot.x),
-                top: top.y,
-                foot: foot.y,
-                height: foot.y - top.y,
-            })
-        };
+        let predict = |i: usize| Prediction::of(&map.towers[i], camera, &camera_from_world);
         // Towers near the guess, asked for once, and only when some track needs
         // them: to bind it, or (with a trusted guess) to check its binding.
         let unpinned = |t: &&TrackOutput| !self.pinned.contains_key(&t.track_id);
@@ -300,7 +319,8 @@ impl Identity {
     /// Matching jointly undoes swaps: two tracks each bound to the other's
     /// tower can only be put right together, never one by one.
     /// Returns the tracks whose binding this frame's box speaks against while
-    /// most bindings agree: left out for the frame, bound as before after it.
+    /// most bindings agree, or whose box fits a neighbour about as well as
+    /// its own tower: left out for the frame, bound as before after it.
     fn reassign(
         &mut self,
         tracks: &[TrackOutput],
@@ -356,6 +376,36 @@ impl Identity {
         for (r, c) in matches {
             proposal.insert(open[r].track_id, towers[c].0);
         }
+        // How far a track's box lies from its own tower, and from the
+        // nearest other one.
+        let fits = |track: &TrackOutput, own: usize| -> Option<(f64, f64)> {
+            let fit = |&(tower, predicted): &(usize, Option<Prediction>)| {
+                let pred = comparable(track, tower, predicted, map)?;
+                self.distance(track, pred, image, true)
+            };
+            let mine = towers.iter().find(|(i, _)| *i == own).and_then(fit)?;
+            let other = towers
+                .iter()
+                .filter(|(i, _)| *i != own)
+                .filter_map(fit)
+                .fold(f64::INFINITY, f64::min);
+            Some((mine, other))
+        };
+        // A box that fits a neighbour about as well as its own tower (two
+        // towers of a row merged into one box, or half of each) cannot say
+        // which it is: if the matching keeps it on its tower, its binding
+        // stands, but the frame is not handed to the localizer.
+        let crowded: Vec<u64> = open
+            .iter()
+            .filter(|t| {
+                let Some(&bound) = self.bindings.get(&t.track_id) else {
+                    return false;
+                };
+                proposal.get(&t.track_id) == Some(&bound)
+                    && fits(t, bound).is_some_and(|(mine, other)| other - mine < p.ambiguity_margin)
+            })
+            .map(|t| t.track_id)
+            .collect();
         let mut moves = Vec::new();
         let (mut agreeing, mut doubted) = (0usize, Vec::new());
         for t in &open {
@@ -383,6 +433,7 @@ impl Identity {
         if doubted.len() > agreeing {
             doubted.clear();
         }
+        doubted.extend(crowded);
         for (track, wanted) in moves {
             self.strikes.remove(&track);
             self.bindings.remove(&track);
@@ -418,12 +469,11 @@ impl Identity {
                 .copied()
                 .filter(|(i, _)| !taken.contains(i))
                 .collect();
-            let distance = |r: usize, c: usize| -> Option<f64> {
-                let track = unbound[r];
-                let (tower, predicted) = free[c];
+            let fit = |track: &TrackOutput, (tower, predicted): (usize, Option<Prediction>)| {
                 let pred = comparable(track, tower, predicted, map)?;
                 self.distance(track, pred, image, guess_trusted)
             };
+            let distance = |r: usize, c: usize| fit(unbound[r], free[c]);
             let matches = max_score_matching(
                 unbound.len(),
                 free.len(),
@@ -433,9 +483,13 @@ impl Identity {
             let mut chosen = Vec::with_capacity(matches.len());
             for (r, c) in matches {
                 let Some(best) = distance(r, c) else { continue };
-                let runner_up = (0..free.len())
-                    .filter(|&o| o != c)
-                    .filter_map(|o| distance(r, o))
+                // Held towers count too: a second box on a tower another
+                // track holds (a duplicate, or a new track before the old
+                // one ends) is not pushed onto that tower's free neighbour.
+                let runner_up = near
+                    .iter()
+                    .filter(|&&(i, _)| i != free[c].0)
+                    .filter_map(|&o| fit(unbound[r], o))
                     .fold(f64::INFINITY, f64::min);
                 if runner_up - best >= self.params.ambiguity_margin {
                     chosen.push((unbound[r].track_id, free[c].0));
@@ -478,7 +532,6 @@ fn comparable(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::landmarks::MapTower;
     use nalgebra::Point3;
     use towernav_geometry::{Attitude, PixelBox};
     use towernav_protocol::TowerType;
@@ -688,12 +741,7 @@ mod tests {
         // when the detector gives one box for two that overlap.
         let camera = PinholeCamera::default_hd();
         let pose = pose_at_20m();
-        let map = map_of(&[
-            ("A1", 100.0, 30.0),
-            ("A2", 100.0, -30.0),
-            ("B1", 200.0, 0.0),
-            ("B2", 260.0, 0.0),
-        ]);
+        let map = row();
         let on = |tower: usize, track: u64| observe(&pose, &camera, &map, tower, track);
         let steady = [on(0, 7), on(1, 8), on(2, 9)];
         let flicker = [on(0, 7), on(1, 8), on(3, 9)];
@@ -721,6 +769,91 @@ mod tests {
             identity.update(&flicker[1..], &[8, 9], trusted, towers),
             [Some(1), None]
         );
+    }
+
+    /// Two towers beside the path, and B1 and B2 ahead, B2 behind B1.
+    fn row() -> LandmarkMap {
+        map_of(&[
+            ("A1", 100.0, 30.0),
+            ("A2", 100.0, -30.0),
+            ("B1", 200.0, 0.0),
+            ("B2", 260.0, 0.0),
+        ])
+    }
+
+    #[test]
+    fn a_second_box_on_a_held_tower_is_not_pushed_onto_its_free_neighbour() {
+        // Track 9 holds B1; a new track 10 shows B1 too (a duplicate box, or
+        // a new track before the old one ends). B2, behind B1 and free, is
+        // within the rough guess's gate, but B1 fits the box far better.
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        let map = row();
+        let rough = view(&pose, &camera, &map, false);
+        let towers = || vec![0, 1, 2, 3];
+        let mut identity = Identity::new(IdentityParams::default());
+        let first = [observe(&pose, &camera, &map, 2, 9)];
+        assert_eq!(identity.update(&first, &[9], rough, towers), [Some(2)]);
+        let both = [first[0].clone(), observe(&pose, &camera, &map, 2, 10)];
+        let b2 = comparable(&both[1], 3, Some(predicted(&pose, &camera, &map, 3)), &map)
+            .and_then(|p| identity.distance(&both[1], p, (1280.0, 720.0), false))
+            .expect("B2 is in view");
+        assert!(
+            b2 < IdentityParams::default().gate,
+            "B2 within the gate: {b2}"
+        );
+        assert_eq!(
+            identity.update(&both, &[9, 10], rough, towers),
+            [Some(2), None],
+            "not taken for B2"
+        );
+        // Once the old track ends, the new one takes B1.
+        assert_eq!(identity.update(&both[1..], &[10], rough, towers), [Some(2)]);
+    }
+
+    #[test]
+    fn a_box_between_two_towers_of_a_row_is_left_out_but_keeps_its_binding() {
+        // The track on B1 shows a box halfway between B1's and B2's, as a
+        // detector gives when the two overlap: it cannot say which it is.
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        let map = row();
+        let on = |tower: usize, track: u64| observe(&pose, &camera, &map, tower, track);
+        let steady = [on(0, 7), on(1, 8), on(2, 9)];
+        let (b1, b2) = (on(2, 9).bbox, on(3, 9).bbox);
+        let between = TrackOutput {
+            bbox: PixelBox::new(
+                0.5 * (b1.left + b2.left),
+                0.5 * (b1.top + b2.top),
+                0.5 * (b1.right + b2.right),
+                0.5 * (b1.bottom + b2.bottom),
+            ),
+            ..on(2, 9)
+        };
+        let merged = [on(0, 7), on(1, 8), between];
+        let ids = [7, 8, 9];
+        let towers = || vec![0, 1, 2, 3];
+        let trusted = view(&pose, &camera, &map, true);
+        let mut identity = Identity::new(IdentityParams::default());
+        assert_eq!(
+            identity.update(&steady, &ids, trusted, towers),
+            [Some(0), Some(1), Some(2)]
+        );
+        assert_eq!(
+            identity.update(&merged, &ids, trusted, towers),
+            [Some(0), Some(1), None]
+        );
+        assert_eq!(identity.confidence(9), Some(1.0), "no strike: it agreed");
+        assert_eq!(
+            identity.update(&steady, &ids, trusted, towers),
+            [Some(0), Some(1), Some(2)]
+        );
+    }
+
+    /// Where tower `i` should stand in the image from `pose`.
+    fn predicted(pose: &Pose, camera: &PinholeCamera, map: &LandmarkMap, i: usize) -> Prediction {
+        let cfw = camera.world_from_camera(pose).inverse();
+        Prediction::of(&map.towers[i], camera, &cfw).expect("visible")
     }
 
     #[test]

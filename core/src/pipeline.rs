@@ -61,8 +61,12 @@ pub struct BoundTrack {
     pub track_id: u64,
     pub bbox: PixelBox,
     pub tower_type: TowerType,
-    /// Index into the landmark map.
+    /// Index into the landmark map: the tower this frame's box is taken for
+    /// and handed to the localizer as.
     pub tower: Option<usize>,
+    /// The tower the track is bound to, also on a frame whose box is left
+    /// out (`tower` is then `None`): what names the track over time.
+    pub held: Option<usize>,
     pub pinned: bool,
     /// How sure the binding is (see [`Identity::confidence`]).
     pub confidence: Option<f64>,
@@ -329,6 +333,7 @@ impl Pipeline {
             .map(|(t, tower)| BoundTrack {
                 pinned: self.identity.is_pinned(t.track_id),
                 confidence: tower.and_then(|_| self.identity.confidence(t.track_id)),
+                held: self.identity.binding(t.track_id),
                 track_id: t.track_id,
                 bbox: self.view.to_real(&t.bbox),
                 tower_type: t.tower_type,

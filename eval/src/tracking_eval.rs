@@ -96,18 +96,21 @@ pub fn add_frame(
     acc.add_frame(&gt, &ignore, hyps);
 }
 
-/// Ours, as hypotheses: a bound track is named by its tower, an unbound one by its track.
+/// Ours, as hypotheses: a bound track is named by its tower, an unbound one
+/// by its track. A track whose box is left out for a frame keeps its name
+/// (its binding holds), but claims no tower for that frame.
 pub fn pipeline_hypotheses(out: &FrameOutput, map: &LandmarkMap) -> Vec<Hypothesis> {
     out.tracks
         .iter()
         .map(|t| {
-            let tower = t.tower.map(|i| map.towers[i].id.clone());
+            let name = |i: usize| map.towers[i].id.clone();
             Hypothesis {
-                id: tower
-                    .clone()
-                    .unwrap_or_else(|| format!("track-{}", t.track_id)),
+                id: t
+                    .held
+                    .or(t.tower)
+                    .map_or_else(|| format!("track-{}", t.track_id), name),
                 bbox: t.bbox,
-                tower,
+                tower: t.tower.map(name),
             }
         })
         .collect()
