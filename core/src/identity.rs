@@ -843,6 +843,7 @@ mod tests {
             identity.update(&merged, &ids, trusted, towers),
             [Some(0), Some(1), None]
         );
+        assert_eq!(identity.binding(9), Some(2), "still held");
         assert_eq!(identity.confidence(9), Some(1.0), "no strike: it agreed");
         assert_eq!(
             identity.update(&steady, &ids, trusted, towers),

@@ -230,3 +230,66 @@ pub fn run(
         metrics: acc.finish(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Point3;
+    use towernav_core::filter::FixVerdict;
+    use towernav_core::{BoundTrack, MapTower};
+    use towernav_geometry::{Datum, Geodetic};
+    use towernav_protocol::TowerType;
+
+    use super::*;
+
+    #[test]
+    fn a_track_left_out_for_a_frame_keeps_its_name_but_claims_no_tower() {
+        let tower = MapTower {
+            id: "L1-A1".into(),
+            tower_type: TowerType::A,
+            foot_in_world: Point3::new(100.0, 0.0, 0.0),
+            height_m: 30.0,
+            sigma_horizontal_m: 0.0,
+            sigma_vertical_m: 0.0,
+        };
+        let datum = Datum::new(Geodetic {
+            lat_deg: 30.5,
+            lon_deg: 114.3,
+            height_m: 0.0,
+        });
+        let map = LandmarkMap::new(vec![tower], datum);
+        let track = |id: u64, tower: Option<usize>, held: Option<usize>| BoundTrack {
+            track_id: id,
+            bbox: PixelBox::new(600.0, 200.0, 640.0, 400.0),
+            tower_type: TowerType::A,
+            tower,
+            held,
+            pinned: false,
+            confidence: None,
+        };
+        let out = FrameOutput {
+            seq: 0,
+            time_s: 0.0,
+            fix: None,
+            estimate: None,
+            verdict: FixVerdict::NoFix,
+            paper_fix: None,
+            tracks: vec![
+                track(1, Some(0), Some(0)),
+                track(2, None, Some(0)),
+                track(3, None, None),
+            ],
+        };
+        let named: Vec<(String, Option<String>)> = pipeline_hypotheses(&out, &map)
+            .into_iter()
+            .map(|h| (h.id, h.tower))
+            .collect();
+        assert_eq!(
+            named,
+            [
+                ("L1-A1".to_owned(), Some("L1-A1".to_owned())),
+                ("L1-A1".to_owned(), None),
+                ("track-3".to_owned(), None),
+            ]
+        );
+    }
+}
