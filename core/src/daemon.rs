@@ -21,6 +21,7 @@ use towernav_protocol::{
 use crate::autopilot::velocity_from_odometry;
 use crate::autopilot_link::{AutopilotLink, LinkEstimate};
 use crate::landmarks::LandmarkMap;
+use crate::optical_flow::velocity_from_optical_flow;
 use crate::pipeline::{FrameOutput, Pipeline};
 use crate::wire::{pose_estimate, track_report};
 
@@ -131,6 +132,9 @@ pub struct DaemonCore {
     last: Option<FrameOutput>,
     state: EdgeState,
     last_time_s: f64,
+    /// The last frame's IMU attitude: what turns a flow sensor's body-frame
+    /// velocity into the world.
+    last_attitude: Option<Attitude>,
     fixes: u64,
     frames: u64,
     poses: u64,
@@ -159,6 +163,7 @@ impl DaemonCore {
             last: None,
             state: EdgeState::Initializing,
             last_time_s: 0.0,
+            last_attitude: None,
             fixes: 0,
             frames: 0,
             poses: 0,
@@ -256,6 +261,7 @@ impl DaemonCore {
         self.latency_us.saturating_record((latency * 1e3) as u64);
         self.frames += 1;
         self.last_time_s = frame.time_s;
+        self.last_attitude = Some(frame.attitude);
         self.last_frame_at = Some(now);
         self.last = Some(output);
     }
@@ -335,6 +341,24 @@ impl DaemonCore {
                     tracing::debug!(?from, %reason, "an ODOMETRY's velocity is not used");
                 }
             },
+            MavMessage::OPTICAL_FLOW_RAD(o) => {
+                let Some(attitude) = self.last_attitude else {
+                    tracing::debug!(
+                        ?from,
+                        "an OPTICAL_FLOW_RAD before any frame's attitude is not used"
+                    );
+                    return;
+                };
+                match velocity_from_optical_flow(o, &attitude) {
+                    Ok((v, c)) => {
+                        let fused = self.pipeline.fuse_velocity(time_s, &v, &c);
+                        tracing::trace!(?from, fused, "optical-flow velocity");
+                    }
+                    Err(reason) => {
+                        tracing::debug!(?from, %reason, "an OPTICAL_FLOW_RAD's velocity is not used");
+                    }
+                }
+            }
             MavMessage::ALTITUDE(a) if a.altitude_relative.is_finite() => {
                 self.altitude_source_seen = true;
                 self.pipeline

@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Point3;
 use towernav_geometry::{Attitude, PinholeCamera};
-use towernav_protocol::{Health, IdCorrection, NodeId, PoseMethod};
+use towernav_protocol::{Detection, Health, IdCorrection, NodeId, PoseMethod};
 
 use super::*;
 use crate::fixtures::{map, tower};
@@ -347,4 +347,89 @@ fn with_an_autopilot_link_the_core_beats_mavlink_through_a_camera_stall() {
     let count = |name: &str| mavlink.iter().filter(|n| **n == name).count();
     assert_eq!(count("HEARTBEAT"), 10);
     assert_eq!(count("GPS_INPUT"), 50);
+}
+
+/// The fixture's towers as an ideal detector boxes them from `pose`.
+fn boxes_seen_from(core: &DaemonCore, pose: &towernav_geometry::Pose) -> Vec<Detection> {
+    let pipeline = core.pipeline();
+    let camera = pipeline.config().camera;
+    let camera_from_world = camera.world_from_camera(pose).inverse();
+    pipeline
+        .map()
+        .towers
+        .iter()
+        .filter_map(|t| {
+            let foot = camera.project(&(camera_from_world * t.foot_in_world))?;
+            let top = camera.project(&(camera_from_world * t.top_in_world()))?;
+            let half_width = 0.1 * (foot.y - top.y);
+            Some(Detection {
+                bbox: towernav_geometry::PixelBox::new(
+                    foot.x - half_width,
+                    top.y,
+                    foot.x + half_width,
+                    foot.y,
+                ),
+                tower_type: t.tower_type,
+                score: 0.9,
+            })
+        })
+        .collect()
+}
+
+/// Hovers 20 m up with both towers in view for two seconds, then loses them
+/// for one, while a flow sensor 10 m above the ground (when `flow_mps` is
+/// given) reports that speed forward (east) 30 times a second; returns the
+/// estimate's east velocity at the end.
+fn east_velocity_after_a_gap(flow_mps: Option<f64>) -> f64 {
+    use mavlink::dialects::common::{MavMessage, OPTICAL_FLOW_RAD_DATA};
+
+    let start = Instant::now();
+    let mut core = core_with_autopilot(start);
+    let pose = towernav_geometry::Pose {
+        position_in_world: Point3::new(0.0, 0.0, 20.0),
+        attitude: Attitude::level(0.0),
+    };
+    let seen = boxes_seen_from(&core, &pose);
+    assert_eq!(seen.len(), 2, "both towers in view");
+    let dt = 1.0 / 30.0;
+    for seq in 0..90u64 {
+        let at = start + Duration::from_secs_f64(seq as f64 * dt);
+        let mut f = frame(seq, at, start);
+        if seq < 60 {
+            f.detections = seen.clone();
+        }
+        core.handle_frame(at, f);
+        if let (Some(v), true) = (flow_mps, seq >= 60) {
+            // Forward motion is flow about the sensor's Y axis.
+            let message = MavMessage::OPTICAL_FLOW_RAD(OPTICAL_FLOW_RAD_DATA {
+                integration_time_us: (dt * 1e6) as u32,
+                integrated_y: (v * dt / 10.0) as f32,
+                distance: 10.0,
+                quality: 255,
+                ..OPTICAL_FLOW_RAD_DATA::DEFAULT
+            });
+            core.handle_command(
+                at,
+                Command::FromAutopilot {
+                    from: (1, 158),
+                    message,
+                },
+            );
+        }
+        drain(&mut core);
+    }
+    let estimate = core
+        .last_output()
+        .and_then(|o| o.estimate.as_ref())
+        .expect("still coasting");
+    assert!(!estimate.updated, "no tower in the last second");
+    estimate.velocity_in_world.x
+}
+
+#[test]
+fn an_optical_flow_sensor_s_velocity_carries_the_coast() {
+    let still = east_velocity_after_a_gap(None);
+    let moving = east_velocity_after_a_gap(Some(2.0));
+    assert!(still.abs() < 0.3, "hovering: {still}");
+    assert!((moving - 2.0).abs() < 0.3, "the flow's 2 m/s: {moving}");
 }

@@ -20,6 +20,7 @@ pub mod identity;
 pub mod landmarks;
 pub mod localizer;
 pub mod log_limit;
+pub mod optical_flow;
 pub mod pipeline;
 pub mod replica;
 pub mod survey_labels;
