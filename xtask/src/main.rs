@@ -231,7 +231,12 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
 const ONNXRUNTIME_VERSION: &str = "1.31.1";
 
 fn main() -> anyhow::Result<()> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+    // `cargo run` names the checkout it runs from; the path compiled in may be
+    // another checkout's when two share a target directory and its build.
+    let manifest_dir = std::env::var_os("CARGO_MANIFEST_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| env!("CARGO_MANIFEST_DIR").into());
+    let root = manifest_dir
         .parent()
         .context("xtask lives one level below the workspace root")?
         .to_path_buf();
