@@ -54,6 +54,13 @@ def parse_args() -> argparse.Namespace:
     return p.parse_args()
 
 
+def every_core(model, torch, threads: int):
+    """Ultralytics sets CPU training to all cores but one, which on two cores
+    leaves half the machine idle; set the threads back once it has."""
+    model.add_callback("on_pretrain_routine_start", lambda _trainer: torch.set_num_threads(threads))
+    return model
+
+
 def main() -> int:
     args = parse_args()
     on_gpu = args.device != "cpu"
@@ -86,14 +93,14 @@ def main() -> int:
         print(f"training already finished ({best}); exporting and evaluating only")
     elif last.exists():
         print(f"resuming from {last}")
-        YOLO(str(last)).train(resume=True)
+        every_core(YOLO(str(last)), torch, args.threads).train(resume=True)
         done_marker.write_text("ok\n")
     else:
         if run_dir.exists():
             shutil.rmtree(run_dir)
         # A .yaml builds a random init (no download); --init continues from
         # an earlier stage of this project's own from-scratch training.
-        model = YOLO(str(args.init) if args.init else args.model)
+        model = every_core(YOLO(str(args.init) if args.init else args.model), torch, args.threads)
         model.train(
             data=str(data_yaml),
             epochs=args.epochs,
