@@ -199,7 +199,7 @@ fn leave_and_return(port: u16, jsonl: std::path::PathBuf) -> EdgeConfig {
     config.detector.kind = DetectorKind::Oracle;
     config.source.fps = 10.0;
     // Paced, as an autopilot link is, but at a rate 2 busy cores keep up with.
-    config.source.speed = Some(4.0);
+    config.source.speed = Some(3.0);
     config.source.flight = Some(
         concat!(
             env!("CARGO_MANIFEST_DIR"),
