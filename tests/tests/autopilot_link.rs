@@ -198,7 +198,7 @@ fn leave_and_return(port: u16, jsonl: std::path::PathBuf) -> EdgeConfig {
     config.zenoh.listen = vec![towernav_tests::loopback_endpoint()];
     config.detector.kind = DetectorKind::Oracle;
     config.source.fps = 10.0;
-    // Paced, as an autopilot link is, but at a rate 2 busy cores keep up with.
+    // Paced, as an autopilot link is, slowly enough to leave room for other work.
     config.source.speed = Some(3.0);
     config.source.flight = Some(
         concat!(
