@@ -126,6 +126,11 @@ enum Command {
         attitude_sigma_deg: Option<f64>,
         #[arg(long, value_enum, default_value = "default")]
         weather: Weather,
+        /// Also write every Nth frame with its exact truth boxes to
+        /// dataset/ (YOLO images, labels and data.yaml), to score a
+        /// detector on this flight with `towernav-edge eval-detector --images`.
+        #[arg(long, value_name = "N")]
+        dataset_every: Option<u64>,
         #[arg(long)]
         out: PathBuf,
     },
@@ -223,6 +228,7 @@ fn main() -> anyhow::Result<()> {
             gnss_sigma_m,
             attitude_sigma_deg,
             weather,
+            dataset_every,
             out,
         } => {
             anyhow::ensure!(
@@ -242,6 +248,7 @@ fn main() -> anyhow::Result<()> {
                     vertical_sigma_m: 2.0 * gnss_sigma_m,
                     ..GnssParams::default()
                 },
+                dataset_every,
             };
             fly(
                 &world,

@@ -378,3 +378,86 @@ fn randomizing_refuses_a_share_outside_0_to_1_and_an_empty_photo_folder() {
     ]);
     assert!(err.contains("empty") && err.contains("no .jpg"), "{err}");
 }
+
+#[test]
+fn a_flight_dataset_holds_every_nth_frame_with_its_truth_boxes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("flight");
+    sim(&[
+        "flight",
+        "--preset",
+        "straight",
+        "--dataset-every",
+        "300",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    let frames = std::fs::read_to_string(out.join("trajectory.csv"))
+        .expect("trajectory")
+        .lines()
+        .count()
+        - 1;
+    let images = files(&out.join("dataset/images"));
+    assert_eq!(images.len(), frames.div_ceil(300), "{images:?}");
+    assert_eq!(
+        images[0], "000001.jpg",
+        "frame 0, numbered as MOT numbers it"
+    );
+    let yaml = std::fs::read_to_string(out.join("dataset/data.yaml")).expect("data.yaml");
+    assert!(
+        yaml.contains("test: images") && yaml.contains("  3: D"),
+        "{yaml}"
+    );
+    // Each label is one of truth.csv's boxes for that frame.
+    let truth = std::fs::read_to_string(out.join("truth.csv")).expect("truth");
+    let mut labels = 0;
+    for image in &images {
+        let stem = image.trim_end_matches(".jpg");
+        let seq = stem.parse::<u64>().expect("numbered") - 1;
+        let img = image::open(out.join("dataset/images").join(image)).expect("JPEG");
+        let (w, h) = (f64::from(img.width()), f64::from(img.height()));
+        let rows: Vec<Vec<f64>> = truth
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|f| f[0] == seq.to_string())
+            .map(|f| f[3..7].iter().map(|v| v.parse().expect("number")).collect())
+            .collect();
+        let text = std::fs::read_to_string(out.join("dataset/labels").join(format!("{stem}.txt")))
+            .expect("label file");
+        for line in text.lines() {
+            let v: Vec<f64> = line
+                .split(' ')
+                .map(|x| x.parse().expect("number"))
+                .collect();
+            let (cx, cy, bw, bh) = (v[1] * w, v[2] * h, v[3] * w, v[4] * h);
+            let found = rows.iter().any(|r| {
+                let (l, t, r, b) = (r[0].max(0.0), r[1].max(0.0), r[2].min(w), r[3].min(h));
+                (cx - (l + r) / 2.0).abs() < 0.5
+                    && (cy - (t + b) / 2.0).abs() < 0.5
+                    && (bw - (r - l)).abs() < 0.5
+                    && (bh - (b - t)).abs() < 0.5
+            });
+            assert!(found, "frame {seq}: {line} is none of {rows:?}");
+            labels += 1;
+        }
+    }
+    assert!(
+        labels >= images.len(),
+        "towers along the line: {labels} labels"
+    );
+    let refused = Command::new(env!("CARGO_BIN_EXE_towernav-sim"))
+        .args([
+            "flight",
+            "--preset",
+            "straight",
+            "--dataset-every",
+            "0",
+            "--out",
+        ])
+        .arg(dir.path().join("zero"))
+        .output()
+        .expect("run towernav-sim");
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--dataset-every"));
+}

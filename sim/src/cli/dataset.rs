@@ -235,7 +235,13 @@ fn write_world(
                 .join("labels")
                 .join(split.name())
                 .join(format!("{stem}.txt"));
-            write_labels(&label, &shot, size, &mut counts.boxes[split as usize])?;
+            write_labels(
+                &label,
+                &shot.truth,
+                &shot.lens,
+                size,
+                &mut counts.boxes[split as usize],
+            )?;
             counts.images[split as usize] += 1;
             bar.inc(1);
         }
@@ -263,7 +269,7 @@ fn write_photos(out: &Path, photos: &PhotoLibrary) -> anyhow::Result<usize> {
     Ok(photos.photos.len())
 }
 
-fn save_jpeg(image: &RgbImage, path: &Path, quality: u8) -> anyhow::Result<()> {
+pub(crate) fn save_jpeg(image: &RgbImage, path: &Path, quality: u8) -> anyhow::Result<()> {
     let file =
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut writer = std::io::BufWriter::new(file);
@@ -276,16 +282,17 @@ fn save_jpeg(image: &RgbImage, path: &Path, quality: u8) -> anyhow::Result<()> {
 }
 
 /// One image's YOLO labels (class, centre, size, normalized), counted per type.
-fn write_labels(
+pub(crate) fn write_labels(
     path: &Path,
-    shot: &Shot,
+    truth: &FrameTruth,
+    lens: &LensEffects,
     (iw, ih): (f64, f64),
     counts: &mut [usize; 4],
 ) -> anyhow::Result<()> {
     let mut file = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
     );
-    for b in shot.truth.boxes.iter().filter(|b| b.labelled()) {
+    for b in truth.boxes.iter().filter(|b| b.labelled()) {
         // Random worlds hold the four rendered designs, the dataset's classes.
         let class = b.tower_type.rendered_index().with_context(|| {
             format!(
@@ -293,7 +300,7 @@ fn write_labels(
                 b.tower_id, b.tower_type
             )
         })?;
-        let bbox = shot.lens.map_box(&b.bbox, iw, ih).clipped(iw, ih);
+        let bbox = lens.map_box(&b.bbox, iw, ih).clipped(iw, ih);
         // The lens may bend or skew a tower at the edge out of the frame.
         if bbox.width() < 1.0 || bbox.height() < 1.0 {
             continue;

@@ -9,6 +9,7 @@ use towernav_geometry::Attitude;
 use towernav_sim::replay::ReplaySource;
 use towernav_sim::{Conditions, FrameTruth, Renderer, Scenario};
 
+use crate::cli::flight_dataset::FlightDataset;
 use crate::cli::mot;
 use crate::cli::tlog::{LogRow, TlogWriter};
 use crate::cli::video::VideoWriter;
@@ -36,6 +37,8 @@ pub struct FlightOutputs<'a> {
     pub calibration: Option<&'a Path>,
     /// The GNSS error of `flight.tlog`'s positions.
     pub gnss: GnssParams,
+    /// Every Nth frame with its truth boxes to `dataset/`, a YOLO dataset.
+    pub dataset_every: Option<u64>,
 }
 
 /// Write `trajectory.csv`, `truth.csv`, `mot/<name>/`, `attitude.csv` (the
@@ -88,7 +91,11 @@ pub fn write_flight(
             .with_context(|| format!("creating {}", img_dir.display()))?;
     }
     let k = scenario.camera.intrinsics;
-    let renderer = (images || outputs.video)
+    let mut dataset = outputs
+        .dataset_every
+        .map(|every| FlightDataset::create(out, every))
+        .transpose()?;
+    let renderer = (images || outputs.video || dataset.is_some())
         .then(|| Renderer::new(&scenario.world, scenario.camera, scenario.seed));
     let mut buffers = renderer.as_ref().map(Renderer::buffers);
     let mut video = outputs
@@ -120,7 +127,9 @@ pub fn write_flight(
             attitude: input.imu_attitude,
             position_in_world: p.position_in_world,
         })?;
-        if let (Some(renderer), Some(buffers)) = (&renderer, &mut buffers) {
+        let into_dataset = dataset.as_ref().is_some_and(|d| d.wants(truth.seq));
+        let drawn = images || outputs.video || into_dataset;
+        if let (Some(renderer), Some(buffers), true) = (&renderer, &mut buffers, drawn) {
             let rates = scenario.flight.attitude_rates(truth.time_s);
             renderer.render_into(buffers, p, conditions, rates, scenario.seed ^ truth.seq);
             if images {
@@ -133,6 +142,9 @@ pub fn write_flight(
             if let Some(video) = &mut video {
                 video.push(&buffers.image)?;
             }
+            if let (Some(dataset), true) = (&mut dataset, into_dataset) {
+                dataset.push(&truth, &buffers.image)?;
+            }
         }
         truths.push(truth);
         bar.inc(1);
@@ -144,6 +156,10 @@ pub fn write_flight(
     tlog.finish()?;
     if let Some(video) = video {
         video.finish()?;
+    }
+    if let Some(dataset) = dataset {
+        let (frames, boxes) = dataset.finish()?;
+        tracing::info!(frames, boxes, dir = %out.join("dataset").display(), "wrote the flight's truth dataset");
     }
     let towers = write_towers(scenario, out)?;
     let calibration = outputs

@@ -3,6 +3,7 @@
 pub mod contact_sheet;
 pub mod dataset;
 pub mod flight_cmd;
+pub mod flight_dataset;
 pub mod mot;
 pub mod overlay;
 pub mod photos;
