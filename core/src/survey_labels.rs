@@ -37,6 +37,9 @@ pub struct LabelParams {
     pub min_in_frame: f64,
     /// A detector's box this close (IoU) to a projected one replaces it.
     pub snap_iou: f64,
+    /// An unsnapped label takes its width from the same tower's snapped
+    /// box at most this many seconds away in the flight.
+    pub width_from_s: f64,
 }
 
 impl Default for LabelParams {
@@ -46,6 +49,7 @@ impl Default for LabelParams {
             max_hidden: 0.75,
             min_in_frame: 0.5,
             snap_iou: 0.5,
+            width_from_s: 20.0,
         }
     }
 }
@@ -80,6 +84,9 @@ pub struct TowerLabel {
     /// between the snapped labels and their projections (the pose error
     /// every projection of the frame shares).
     pub shifted: Option<PixelBox>,
+    /// Not snapped: the flight time of the frame whose snapped box of the
+    /// same tower lent its width to `shifted` (see [`borrow_widths`]).
+    pub width_from_s: Option<f64>,
     pub dropped: Option<Dropped>,
 }
 
@@ -231,6 +238,7 @@ pub fn project_labels(
                 distance_m,
                 snapped: None,
                 shifted: None,
+                width_from_s: None,
                 dropped,
             })
         })
@@ -396,6 +404,55 @@ fn shift_the_rest(labels: &mut [TowerLabel]) {
     }
 }
 
+/// One labelled frame of a flight: its time, seconds, and its labels.
+pub type FrameLabels = (f64, Vec<TowerLabel>);
+
+/// Gives each unsnapped label the width of the same tower's snapped box in
+/// the nearest frame within `width_from_s`, scaled by the two heights. The
+/// projection knows the tower's height but not its arms' span or which way
+/// they face (the database holds neither), so its width errs by up to half;
+/// the detector's box in a nearby frame saw the tower from about the same
+/// side. Its place and height stay the projection's (moved by the frame's
+/// offset).
+pub fn borrow_widths(frames: &mut [FrameLabels], params: &LabelParams) {
+    let mut snapped: std::collections::HashMap<usize, Vec<(f64, f64)>> = Default::default();
+    for (t, labels) in frames.iter() {
+        for l in labels.iter().filter(|l| l.dropped.is_none()) {
+            if let Some((b, _)) = l.snapped
+                && b.height() > 0.0
+            {
+                snapped
+                    .entry(l.tower)
+                    .or_default()
+                    .push((*t, b.width() / b.height()));
+            }
+        }
+    }
+    for (t, labels) in frames.iter_mut() {
+        for l in labels
+            .iter_mut()
+            .filter(|l| l.dropped.is_none() && l.snapped.is_none())
+        {
+            let Some(&(from, aspect)) = snapped.get(&l.tower).and_then(|v| {
+                v.iter()
+                    .filter(|(s, _)| (s - *t).abs() <= params.width_from_s)
+                    .min_by(|a, b| (a.0 - *t).abs().total_cmp(&(b.0 - *t).abs()))
+            }) else {
+                continue;
+            };
+            let b = l.shifted.unwrap_or(l.projected);
+            let half = aspect * b.height() / 2.0;
+            l.shifted = Some(PixelBox::new(
+                b.center_x() - half,
+                b.top,
+                b.center_x() + half,
+                b.bottom,
+            ));
+            l.width_from_s = Some(from);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -512,5 +569,54 @@ mod tests {
             (got.left - moved.left).abs() < 1e-9 && (got.top - moved.top).abs() < 1e-9,
             "{got:?} against {moved:?}"
         );
+    }
+
+    #[test]
+    fn an_unsnapped_label_borrows_the_nearest_snapped_width_of_its_tower() {
+        let (camera, pose) = setup();
+        let towers = [tower("ahead", 0.0, 100.0), tower("left", -40.0, 120.0)];
+        let labeller = LabelCamera::new(camera);
+        let frame = || project_labels(&labeller, &pose, &towers, &LabelParams::default());
+        let ahead = |labels: &[TowerLabel]| labels.iter().position(|l| l.tower == 0).unwrap();
+        let p = {
+            let l = frame();
+            l[ahead(&l)].projected
+        };
+        // Seen at 0 s and 30 s with the detector's boxes, 0.45 and 0.3 times
+        // as wide as they are tall (the projection: 0.35); at 10 s and 51 s
+        // with none.
+        let snapped_at = |aspect: f64| {
+            let mut labels = frame();
+            let half = aspect * p.height() / 2.0;
+            let b = PixelBox::new(p.center_x() - half, p.top, p.center_x() + half, p.bottom);
+            snap(&mut labels, &[b], &LabelParams::default(), (1280.0, 720.0));
+            let i = ahead(&labels);
+            assert!(labels[i].snapped.is_some(), "{:?} snaps", labels[i]);
+            labels
+        };
+        let mut flight: Vec<FrameLabels> = vec![
+            (0.0, snapped_at(0.45)),
+            (10.0, frame()),
+            (30.0, snapped_at(0.3)),
+            (51.0, frame()),
+        ];
+        borrow_widths(&mut flight, &LabelParams::default());
+        let at = |k: usize| {
+            let l = &flight[k].1[ahead(&flight[k].1)];
+            (l.label().unwrap(), l.width_from_s)
+        };
+        let (b, from) = at(1);
+        assert_eq!(from, Some(0.0), "the nearest frame in time");
+        assert!((b.width() - 0.45 * p.height()).abs() < 1e-9, "{b:?}");
+        assert!(
+            (b.height() - p.height()).abs() < 1e-9 && (b.center_x() - p.center_x()).abs() < 1e-9
+        );
+        // 21 s from the nearest snapped frame: its own projection's width.
+        let (b, from) = at(3);
+        assert_eq!(from, None);
+        assert!((b.width() - p.width()).abs() < 1e-9, "{b:?}");
+        // A tower never snapped keeps its projected width.
+        let left = flight[1].1.iter().find(|l| l.tower == 1).unwrap();
+        assert!(left.width_from_s.is_none() && left.label().unwrap().width() > 0.0);
     }
 }

@@ -15,12 +15,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use towernav_core::survey_labels::{
-    Dropped, LabelCamera, LabelParams, SurveyTower, TowerLabel, WIDTH_PER_HEIGHT, project_labels,
-    snap,
+    Dropped, FrameLabels, LabelCamera, LabelParams, SurveyTower, TowerLabel, WIDTH_PER_HEIGHT,
+    borrow_widths, project_labels, snap,
 };
 use towernav_dataset::YoloLabel;
 use towernav_flightlog::GnssSample;
-use towernav_geometry::{Datum, Geodetic, PinholeCamera, PixelBox, Pose};
+use towernav_geometry::{Datum, Geodetic, PixelBox, Pose};
 use towernav_protocol::LandmarkRecord;
 
 use crate::daemon::config::EdgeConfig;
@@ -106,7 +106,7 @@ pub fn label_flight(
         false => None,
     };
     let classes = class_names(&towers, options.one_class);
-    let mut writer = DatasetWriter::create(&options.out, &classes)?;
+    let mut writer = DatasetWriter::create(&options.out, &classes, (width, height))?;
 
     let mut run = LabelRun::default();
     let mut report = String::from(
@@ -116,6 +116,8 @@ pub fn label_flight(
     let mut source = source;
     let total = source.frame_count();
     let every = options.every.max(1);
+    let mut names = Vec::new();
+    let mut flight: Vec<FrameLabels> = Vec::new();
     while let Some(frame) = source.next_frame() {
         let frame = frame?;
         run.frames += 1;
@@ -154,13 +156,20 @@ pub fn label_flight(
             );
         }
         let name = format!("frame_{:06}", frame.seq);
-        let kept = writer.write(&name, image, &labels, &towers, &classes, &camera)?;
+        writer.save_image(&name, image)?;
+        names.push(name);
+        flight.push((frame.time_s, labels));
+    }
+    // Widths come from the whole flight: a tower is often far, unsnapped,
+    // before the frames where the detector boxes it.
+    borrow_widths(&mut flight, &options.params);
+    for (index, (name, (_, labels))) in names.iter().zip(&flight).enumerate() {
         run.labelled_frames += 1;
-        run.labels += kept;
-        for l in &labels {
+        run.labels += writer.write_labels(index, name, labels, &towers, &classes)?;
+        for l in labels {
             run.snapped += usize::from(l.dropped.is_none() && l.snapped.is_some());
             run.dropped += usize::from(l.dropped.is_some());
-            report_row(&mut report, &name, l, &towers);
+            report_row(&mut report, name, l, &towers);
         }
     }
     writer.finish(&classes)?;
@@ -184,8 +193,13 @@ fn report_row(out: &mut String, frame: &str, l: &TowerLabel, towers: &[SurveyTow
     let p = &l.projected;
     let status = match l.dropped {
         None if l.snapped.is_some() => "snapped".to_string(),
-        None if l.shifted.is_some() => "shifted by the frame's offset".to_string(),
-        None => "projected".to_string(),
+        None => match (l.shifted, l.width_from_s) {
+            (Some(_), Some(t)) => {
+                format!("shifted by the frame's offset; width from the snapped box at {t:.1} s")
+            }
+            (Some(_), None) => "shifted by the frame's offset".to_string(),
+            (None, _) => "projected".to_string(),
+        },
         Some(Dropped::OutOfView) => "dropped: out of view".to_string(),
         Some(Dropped::CutByFrame { in_frame }) => {
             format!("dropped: {:.0} % in frame", 100.0 * in_frame)
@@ -221,6 +235,9 @@ struct DatasetWriter {
     coco_images: Vec<serde_json::Value>,
     coco_annotations: Vec<serde_json::Value>,
     tiles: Vec<image::RgbImage>,
+    /// The camera's frame, pixels.
+    width: f64,
+    height: f64,
 }
 
 /// Contact-sheet tiles: this wide, at most this many, this many a row.
@@ -228,13 +245,17 @@ const TILE_WIDTH: u32 = 320;
 const SHEET_TILES: usize = 24;
 const SHEET_COLUMNS: usize = 4;
 
-/// A frame shrunk to a contact-sheet tile with its labels drawn: green
-/// snapped to the detector, amber projected.
-fn tile(image: &image::RgbImage, labels: &[TowerLabel], w: f64, h: f64) -> image::RgbImage {
-    let scale = f64::from(TILE_WIDTH) / w;
-    let th = (h * scale).round().max(1.0) as u32;
-    let mut tile =
-        image::imageops::resize(image, TILE_WIDTH, th, image::imageops::FilterType::Triangle);
+/// A frame shrunk to a contact-sheet tile.
+fn tile(image: &image::RgbImage) -> image::RgbImage {
+    let scale = f64::from(TILE_WIDTH) / f64::from(image.width().max(1));
+    let th = (f64::from(image.height()) * scale).round().max(1.0) as u32;
+    image::imageops::resize(image, TILE_WIDTH, th, image::imageops::FilterType::Triangle)
+}
+
+/// A frame's labels drawn on its tile: green snapped to the detector, amber
+/// projected.
+fn draw_labels(tile: &mut image::RgbImage, labels: &[TowerLabel], w: f64, h: f64) {
+    let scale = f64::from(tile.width()) / w;
     for l in labels {
         let Some(b) = l.label() else { continue };
         let b = b.clipped(w, h);
@@ -249,9 +270,8 @@ fn tile(image: &image::RgbImage, labels: &[TowerLabel], w: f64, h: f64) -> image
         } else {
             [255, 180, 0]
         };
-        draw_box(&mut tile, &small, colour, 1);
+        draw_box(tile, &small, colour, 1);
     }
-    tile
 }
 
 /// A box's outline, `thickness` pixels, clipped to the image.
@@ -272,7 +292,7 @@ fn draw_box(image: &mut image::RgbImage, b: &PixelBox, colour: [u8; 3], thicknes
 }
 
 impl DatasetWriter {
-    fn create(out: &Path, classes: &[String]) -> anyhow::Result<Self> {
+    fn create(out: &Path, classes: &[String], (width, height): (u32, u32)) -> anyhow::Result<Self> {
         let images = out.join("images");
         let labels = out.join("labels");
         for dir in [&images, &labels] {
@@ -296,6 +316,8 @@ impl DatasetWriter {
             coco_images: Vec::new(),
             coco_annotations: Vec::new(),
             tiles: Vec::new(),
+            width: f64::from(width),
+            height: f64::from(height),
         })
     }
 
@@ -334,24 +356,31 @@ impl DatasetWriter {
             .with_context(|| format!("writing {}", path.display()))
     }
 
-    /// One frame and its label file; the number of labels written.
-    fn write(
+    /// One frame's image, with its tile kept for the contact sheet.
+    fn save_image(&mut self, name: &str, image: &image::RgbImage) -> anyhow::Result<()> {
+        self.coco_images.push(serde_json::json!({
+            "id": self.coco_images.len() + 1, "file_name": format!("{name}.jpg"),
+            "width": image.width(), "height": image.height(),
+        }));
+        self.tiles.push(tile(image));
+        let image_path = self.images.join(format!("{name}.jpg"));
+        image
+            .save(&image_path)
+            .with_context(|| format!("writing {}", image_path.display()))
+    }
+
+    /// The label file of the `index`-th saved image; the number of labels written.
+    fn write_labels(
         &mut self,
+        index: usize,
         name: &str,
-        image: &image::RgbImage,
         labels: &[TowerLabel],
         towers: &[SurveyTower],
         classes: &[String],
-        camera: &PinholeCamera,
     ) -> anyhow::Result<usize> {
-        let k = &camera.intrinsics;
-        let (w, h) = (f64::from(k.width), f64::from(k.height));
+        let (w, h) = (self.width, self.height);
         let mut text = String::new();
         let mut n = 0;
-        let image_id = self.coco_images.len() + 1;
-        self.coco_images.push(serde_json::json!({
-            "id": image_id, "file_name": format!("{name}.jpg"), "width": k.width, "height": k.height,
-        }));
         for l in labels {
             let Some(b) = l.label() else { continue };
             let b = b.clipped(w, h);
@@ -365,7 +394,7 @@ impl DatasetWriter {
             let _ = writeln!(text, "{}", YoloLabel::from_pixels(class, &b, w, h));
             self.coco_annotations.push(serde_json::json!({
                 "id": self.coco_annotations.len() + 1,
-                "image_id": image_id,
+                "image_id": index + 1,
                 "category_id": class + 1,
                 "bbox": [b.left, b.top, b.width(), b.height()],
                 "area": b.area(),
@@ -373,11 +402,9 @@ impl DatasetWriter {
             }));
             n += 1;
         }
-        self.tiles.push(tile(image, labels, w, h));
-        let image_path = self.images.join(format!("{name}.jpg"));
-        image
-            .save(&image_path)
-            .with_context(|| format!("writing {}", image_path.display()))?;
+        if let Some(tile) = self.tiles.get_mut(index) {
+            draw_labels(tile, labels, w, h);
+        }
         let label_path = self.labels.join(format!("{name}.txt"));
         std::fs::write(&label_path, text)
             .with_context(|| format!("writing {}", label_path.display()))?;
