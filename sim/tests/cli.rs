@@ -128,9 +128,12 @@ fn flight_and_render_write_trajectory_truth_and_a_picture() {
         "flight",
         "--preset",
         "straight",
+        "--dataset-every",
+        "300",
         "--out",
         out.to_str().expect("utf-8"),
     ]);
+    a_flight_dataset_holds_every_300th_frame_with_its_truth_boxes(&out);
     let traj = std::fs::read_to_string(out.join("trajectory.csv")).expect("trajectory");
     let rows = traj.lines().count() - 1;
     assert!(
@@ -379,19 +382,8 @@ fn randomizing_refuses_a_share_outside_0_to_1_and_an_empty_photo_folder() {
     assert!(err.contains("empty") && err.contains("no .jpg"), "{err}");
 }
 
-#[test]
-fn a_flight_dataset_holds_every_nth_frame_with_its_truth_boxes() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("flight");
-    sim(&[
-        "flight",
-        "--preset",
-        "straight",
-        "--dataset-every",
-        "300",
-        "--out",
-        out.to_str().expect("utf-8"),
-    ]);
+/// `--dataset-every 300`'s dataset beside a flight rendered into `out`.
+fn a_flight_dataset_holds_every_300th_frame_with_its_truth_boxes(out: &Path) {
     let frames = std::fs::read_to_string(out.join("trajectory.csv"))
         .expect("trajectory")
         .lines()
@@ -446,6 +438,11 @@ fn a_flight_dataset_holds_every_nth_frame_with_its_truth_boxes() {
         labels >= images.len(),
         "towers along the line: {labels} labels"
     );
+}
+
+#[test]
+fn a_flight_dataset_of_every_0th_frame_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
     let refused = Command::new(env!("CARGO_BIN_EXE_towernav-sim"))
         .args([
             "flight",

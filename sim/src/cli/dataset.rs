@@ -153,7 +153,14 @@ pub fn write_dataset(out: &Path, options: &DatasetOptions) -> anyhow::Result<()>
     }
     bar.finish();
     counts.images[Split::Train as usize] += write_photos(out, &photos)?;
-    write_data_yaml(out, options.seed)?;
+    write_data_yaml(
+        out,
+        &format!(
+            "Written by towernav-sim dataset --seed {}; worlds are split, never frames.",
+            options.seed
+        ),
+        ["images/train", "images/val", "images/test"],
+    )?;
     for split in [Split::Train, Split::Val, Split::Test] {
         let c = counts.boxes[split as usize];
         eprintln!(
@@ -320,8 +327,13 @@ pub(crate) fn write_labels(
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Ultralytics' `data.yaml`: the absolute root, the splits and the class names.
-fn write_data_yaml(out: &Path, seed: u64) -> anyhow::Result<()> {
+/// Ultralytics' `data.yaml`: a comment saying what wrote it, the absolute
+/// root, the train, val and test folders under it, and the class names.
+pub(crate) fn write_data_yaml(
+    out: &Path,
+    comment: &str,
+    [train, val, test]: [&str; 3],
+) -> anyhow::Result<()> {
     let root =
         std::fs::canonicalize(out).with_context(|| format!("resolving {}", out.display()))?;
     let names: String = TowerType::ALL
@@ -330,10 +342,11 @@ fn write_data_yaml(out: &Path, seed: u64) -> anyhow::Result<()> {
         .map(|(i, t)| format!("  {i}: {t}\n"))
         .collect();
     let yaml = format!(
-        "# Written by towernav-sim dataset --seed {seed}; worlds are split, never frames.\npath: {root}\ntrain: images/train\nval: images/val\ntest: images/test\nnames:\n{names}",
+        "# {comment}\npath: {root}\ntrain: {train}\nval: {val}\ntest: {test}\nnames:\n{names}",
         root = root.display()
     );
-    std::fs::write(out.join("data.yaml"), yaml).context("writing data.yaml")
+    let path = out.join("data.yaml");
+    std::fs::write(&path, yaml).with_context(|| format!("writing {}", path.display()))
 }
 
 #[cfg(test)]

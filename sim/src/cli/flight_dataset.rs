@@ -7,10 +7,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use image::RgbImage;
-use towernav_protocol::TowerType;
 use towernav_sim::{FrameTruth, LensEffects};
 
-use crate::cli::dataset::{save_jpeg, write_labels};
+use crate::cli::dataset::{save_jpeg, write_data_yaml, write_labels};
 
 /// The frames a flight's camera recorded are lightly compressed, as these are.
 const JPEG_QUALITY: u8 = 95;
@@ -70,20 +69,14 @@ impl FlightDataset {
     /// Writes `data.yaml`: every split is the flight's frames, so any tool
     /// that asks for one scores them all.
     pub fn finish(self) -> anyhow::Result<(usize, usize)> {
-        let root = std::fs::canonicalize(&self.root)
-            .with_context(|| format!("resolving {}", self.root.display()))?;
-        let names: String = TowerType::ALL
-            .iter()
-            .enumerate()
-            .map(|(i, t)| format!("  {i}: {t}\n"))
-            .collect();
-        let yaml = format!(
-            "# Written by towernav-sim flight --dataset-every {every}: truth boxes, one frame in {every}.\npath: {root}\ntrain: images\nval: images\ntest: images\nnames:\n{names}",
-            every = self.every,
-            root = root.display()
-        );
-        let path = self.root.join("data.yaml");
-        std::fs::write(&path, yaml).with_context(|| format!("writing {}", path.display()))?;
+        write_data_yaml(
+            &self.root,
+            &format!(
+                "Written by towernav-sim flight --dataset-every {every}: truth boxes, one frame in {every}.",
+                every = self.every
+            ),
+            ["images"; 3],
+        )?;
         Ok((self.images, self.boxes.iter().sum()))
     }
 }
