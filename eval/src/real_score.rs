@@ -7,11 +7,14 @@
 
 use serde::Serialize;
 
+use crate::edge_precision::{EdgePrecision, edge_precision};
 use crate::map_eval::{ClassMetrics, Labelled, MapAccumulator, Scored, restrict};
 
 /// One image: its labels (folder classes) and the model's boxes (model classes).
 #[derive(Debug, Clone, Default)]
 pub struct ScoredImage {
+    /// The image's width and height, pixels: a label at its edge is cut there.
+    pub frame: (f64, f64),
     pub labels: Vec<Labelled>,
     pub boxes: Vec<Scored>,
 }
@@ -51,6 +54,8 @@ pub struct FolderScore {
     /// when the model's class names are the folder's.
     pub typed: Option<Vec<Row>>,
     pub dont_care: Vec<String>,
+    /// The boxes' tops and bottoms against the labels', by label height.
+    pub edges: EdgePrecision,
 }
 
 /// Score `images` labelled with `names`, the model's classes being
@@ -94,6 +99,7 @@ pub fn score_folder(
         per_class,
         typed: typed_rows(images, names, model_names, dont_care, at_score),
         dont_care: dont_care.iter().map(|&c| names[c].clone()).collect(),
+        edges: edge_precision(images, dont_care, at_score),
     }
 }
 
@@ -197,6 +203,7 @@ mod tests {
         let wooden = px(500.0, 100.0, 520.0, 300.0);
         vec![
             ScoredImage {
+                frame: (1280.0, 720.0),
                 labels: vec![
                     Labelled {
                         bbox: lattice,
@@ -221,6 +228,7 @@ mod tests {
                 ],
             },
             ScoredImage {
+                frame: (1280.0, 720.0),
                 labels: vec![Labelled {
                     bbox: tubular,
                     class: 1,

@@ -20,6 +20,7 @@ use towernav_onnx::{DetectorOptions, YoloDetector};
 use towernav_sim::world::WorldParams;
 use towernav_sim::{Barometer, BarometerParams, Conditions, Scenario, World};
 
+use crate::edge_precision::robust_sigma;
 use crate::gnss_score::TWO_SIGMA_CHI2;
 use crate::mot_metrics::{MotAccumulator, tower_under};
 use crate::progress::bar;
@@ -188,18 +189,6 @@ impl FrameRow {
             opt(self.fix_up_sigma_m),
         )
     }
-}
-
-/// 1.4826 times the median absolute deviation: a sigma that outliers do not inflate.
-fn robust_sigma(values: &mut [f64]) -> Option<f64> {
-    if values.len() < 10 {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let median = values[values.len() / 2];
-    let mut dev: Vec<f64> = values.iter().map(|v| (v - median).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    Some(1.4826 * dev[dev.len() / 2])
 }
 
 /// World `seed`'s flight: a random world, a turning plan beside its lines

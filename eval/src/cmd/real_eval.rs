@@ -10,6 +10,7 @@ use image::{DynamicImage, ImageDecoder, ImageReader};
 use serde::Serialize;
 use towernav_onnx::yolo::{DetectorOptions, YoloDetector};
 
+use crate::edge_precision::EdgePrecision;
 use crate::map_eval::{Labelled, Scored};
 use crate::progress::bar;
 use crate::real_score::{
@@ -191,7 +192,11 @@ fn score_labelled(
                 class: l.class,
             })
             .collect();
-        scored.push(ScoredImage { labels, boxes });
+        scored.push(ScoredImage {
+            frame: (w, h),
+            labels,
+            boxes,
+        });
         progress.inc(1);
     }
     progress.finish_and_clear();
@@ -228,6 +233,35 @@ fn rows_table(rows: &[&Row]) -> Table {
     table
 }
 
+fn edges_table(edges: &EdgePrecision) -> Table {
+    let mut table = Table::new();
+    table.set_header([
+        "label height",
+        "labels",
+        "matched",
+        "height bias",
+        "height spread",
+        "edge spread",
+    ]);
+    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:+.1} %", 100.0 * v));
+    let spread = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1} %", 100.0 * v));
+    for r in edges.rows.iter().chain([&edges.over_40px]) {
+        let range = match r.max_px {
+            Some(max) => format!("{:.0}-{max:.0} px", r.min_px),
+            None => format!("{:.0}+ px", r.min_px),
+        };
+        table.add_row([
+            range,
+            r.labels.to_string(),
+            r.matched.to_string(),
+            pct(r.height_bias),
+            spread(r.height_spread),
+            spread(r.edge_spread),
+        ]);
+    }
+    table
+}
+
 /// The command: tables on stdout, the numbers as `real-eval.json` in `out`.
 pub fn write_all(
     model: &Path,
@@ -258,6 +292,18 @@ pub fn write_all(
             println!(
                 "The model's classes are the folder's; typed:\n{}\n",
                 rows_table(&typed.iter().collect::<Vec<_>>())
+            );
+        }
+        println!(
+            "Box tops and bottoms against the labels' (whole towers, boxes at IoU 0.5 scoring {}):\n{}",
+            options.at_score,
+            edges_table(&s.edges)
+        );
+        if let Some(spread) = s.edges.over_40px.edge_spread {
+            println!(
+                "The localizer takes an edge to stray by detector.edge_sigma_share of the box's height \
+                 (with 1 px and a small-box term); this model's edges over 40 px stray by {:.1} %.\n",
+                100.0 * spread
             );
         }
     }
