@@ -115,7 +115,8 @@ fn row(min_px: f64, max_px: Option<f64>, whole: &[f64], matches: &[Match]) -> Ed
         matched: m.len(),
         height_bias,
         height_spread: robust_sigma(&mut ratios),
-        edge_spread: robust_sigma(&mut edges),
+        // Two edges a box: ten boxes, as for the height.
+        edge_spread: robust_sigma(&mut edges).filter(|_| m.len() >= MIN_MATCHED),
     }
 }
 
@@ -204,6 +205,8 @@ mod tests {
         assert_eq!(e.over_40px.labels, 80, "the cut towers are not counted");
         assert_eq!(e.rows[0].labels + e.rows[3].labels + e.rows[4].labels, 0);
         assert_eq!(e.rows[4].height_bias, None);
+        let few = edge_precision(&flight()[..9], &[], 0.25);
+        assert_eq!(few.rows[1].edge_spread, None, "18 edges but 9 boxes");
     }
 
     #[test]
