@@ -91,7 +91,7 @@ pub fn edge_precision(images: &[ScoredImage], dont_care: &[usize], at_score: f32
         .collect();
     EdgePrecision {
         rows,
-        over_40px: row(40.0, None, &whole, &matches),
+        over_40px: row(HEIGHT_BINS_PX[1], None, &whole, &matches),
     }
 }
 
