@@ -1,6 +1,7 @@
 //! The cross-crate tests, one module per concern, in one binary.
 
 mod autopilot_link;
+mod coco_start;
 mod detector;
 mod edge_daemon;
 mod fleet;
@@ -15,6 +16,7 @@ mod lens;
 mod localization;
 mod onnx_reid;
 mod pipeline;
+mod real_data;
 mod replay;
 mod sim_source;
 mod tracking;
