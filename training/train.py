@@ -47,9 +47,17 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
+        "--freeze",
+        type=int,
+        default=int(os.environ.get("TOWERNAV_TRAIN_FREEZE", "0")),
+        help="train first with this many leading layers frozen (10: YOLOv5n's backbone), then all",
+    )
+    p.add_argument("--frozen-share", type=float, default=0.3, help="share of --hours spent frozen")
+    p.add_argument(
         "--init",
         type=Path,
-        help="start from this project's own checkpoint (models/towers.pt, or an earlier stage's best.pt)",
+        help="start from this checkpoint: the project's own (models/towers.pt, an earlier stage's best.pt) "
+        "or the old yolov5 tree's COCO checkpoint, converted by coco_init.py",
     )
     return p.parse_args()
 
@@ -59,6 +67,81 @@ def every_core(model, torch, threads: int):
     leaves half the machine idle; set the threads back once it has."""
     model.add_callback("on_pretrain_routine_start", lambda _trainer: torch.set_num_threads(threads))
     return model
+
+
+COCO_INIT_NAME = "coco-init.pt"
+
+
+def resolve_init(init: Path | None, out: Path) -> Path | None:
+    """An Ultralytics checkpoint as it is; the old `yolov5` tree's COCO
+    checkpoint converted first (`coco_init.py`: backbone and neck, fresh head)."""
+    if init is None:
+        return None
+    import coco_init
+
+    if not coco_init.is_old_tree_checkpoint(init):
+        return init
+    converted = out / COCO_INIT_NAME
+    if not converted.exists():
+        print(coco_init.init_checkpoint(init, ["tower"], converted))
+    return converted
+
+
+def run_phase(args, out: Path, name: str, init: Path | None, freeze: int, hours: float, fresh_head: bool, torch, YOLO, data_yaml: Path):
+    """One training phase in `out/name`, resumed from its `last.pt` after an
+    interruption; returns its best weights, None if it left none."""
+    run_dir = out / name
+    last = run_dir / "weights" / "last.pt"
+    best = run_dir / "weights" / "best.pt"
+    done_marker = out / f"{name}.done"
+    if done_marker.exists() and best.exists():
+        print(f"phase {name} already finished ({best})")
+        return best
+    if last.exists():
+        print(f"resuming phase {name} from {last}")
+        every_core(YOLO(str(last)), torch, args.threads).train(resume=True)
+    else:
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        # A .yaml builds a random init (no download); --init continues from a
+        # checkpoint (an earlier stage, or the converted COCO start).
+        model = every_core(YOLO(str(init) if init else args.model), torch, args.threads)
+        model.train(
+            data=str(data_yaml),
+            epochs=args.epochs,
+            time=hours,
+            imgsz=args.imgsz,
+            batch=args.batch,
+            workers=args.workers,
+            device=args.device,
+            cache="ram",
+            pretrained=bool(init),
+            freeze=freeze or None,
+            amp=False,
+            plots=False,
+            project=str(out),
+            name=name,
+            exist_ok=True,
+            seed=args.seed,
+            deterministic=False,
+            patience=100,
+            # A later stage starts from trained weights: its warm-up ramps
+            # every rate up from zero (AdamW's fresh moments with the full rate
+            # at once, or the default bias rate of 0.1, knock them back by
+            # more than an epoch's progress). A fresh head takes the default.
+            warmup_epochs=1.0,
+            warmup_bias_lr=0.0 if init and not fresh_head else 0.1,
+            close_mosaic=3 if init else 2,
+            mosaic=1.0,
+            scale=0.5,
+            fliplr=0.5,
+            verbose=True,
+        )
+    if not best.exists():
+        print(f"error: no {best} after phase {name}", file=sys.stderr)
+        return None
+    done_marker.write_text("ok\n")
+    return best
 
 
 def main() -> int:
@@ -84,54 +167,23 @@ def main() -> int:
         print(f"error: {data_yaml} not found; render it with `towernav-sim dataset --out {args.data}`", file=sys.stderr)
         return 2
 
-    run_dir = out / "train"
-    last = run_dir / "weights" / "last.pt"
-    best = run_dir / "weights" / "best.pt"
-    done_marker = out / "train.done"
+    init = resolve_init(args.init, out)
+    fresh_head = init is not None and init.name == COCO_INIT_NAME
     started = time.time()
-    if done_marker.exists() and best.exists():
-        print(f"training already finished ({best}); exporting and evaluating only")
-    elif last.exists():
-        print(f"resuming from {last}")
-        every_core(YOLO(str(last)), torch, args.threads).train(resume=True)
-        done_marker.write_text("ok\n")
-    else:
-        if run_dir.exists():
-            shutil.rmtree(run_dir)
-        # A .yaml builds a random init (no download); --init continues from
-        # an earlier stage of this project's own from-scratch training.
-        model = every_core(YOLO(str(args.init) if args.init else args.model), torch, args.threads)
-        model.train(
-            data=str(data_yaml),
-            epochs=args.epochs,
-            time=args.hours,
-            imgsz=args.imgsz,
-            batch=args.batch,
-            workers=args.workers,
-            device=args.device,
-            cache="ram",
-            pretrained=bool(args.init),
-            amp=False,
-            plots=False,
-            project=str(out),
-            name="train",
-            exist_ok=True,
-            seed=args.seed,
-            deterministic=False,
-            patience=100,
-            # A later stage starts from trained weights: its warm-up ramps
-            # every rate up from zero (AdamW's fresh moments with the full rate
-            # at once, or the default bias rate of 0.1, knock them back by
-            # more than an epoch's progress).
-            warmup_epochs=1.0,
-            warmup_bias_lr=0.0 if args.init else 0.1,
-            close_mosaic=3 if args.init else 2,
-            mosaic=1.0,
-            scale=0.5,
-            fliplr=0.5,
-            verbose=True,
-        )
-        done_marker.write_text("ok\n")
+    phases = []
+    if args.freeze > 0:
+        # The COCO features stay as they are while the new head and the neck
+        # learn towers; then every layer trains.
+        phases.append(("frozen", args.freeze, args.hours * args.frozen_share))
+    phases.append(("train", 0, args.hours * (1 - args.frozen_share) if phases else args.hours))
+    for name, freeze, hours in phases:
+        weights = run_phase(args, out, name, init, freeze, hours, fresh_head, torch, YOLO, data_yaml)
+        if weights is None:
+            return 1
+        # The next phase starts where this one ended, its head no longer fresh.
+        init, fresh_head = weights, False
+    run_dir = out / "train"
+    best = run_dir / "weights" / "best.pt"
     train_s = time.time() - started
 
     if not best.exists():

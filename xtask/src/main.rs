@@ -59,9 +59,21 @@ enum Task {
         /// Train from a random start instead of fine-tuning models/towers.pt.
         #[arg(long, conflicts_with = "init")]
         from_scratch: bool,
-        /// The checkpoint to fine-tune (default: models/towers.pt).
+        /// The checkpoint to start from (default: models/towers.pt): `coco`
+        /// for the COCO-trained YOLOv5n in ../shared/weights/coco/, another
+        /// checkpoint of the old yolov5 tree (converted: backbone and neck
+        /// kept, a fresh head), or an Ultralytics checkpoint.
         #[arg(long)]
         init: Option<PathBuf>,
+        /// Train first with this many leading layers frozen (10: the
+        /// backbone), then all; default 10 from a COCO start, else 0.
+        #[arg(long)]
+        freeze: Option<u32>,
+        /// Mix in the real photographs of training/data/real-sources.csv
+        /// (`training/real_data.py`): its training sources as one `tower`
+        /// class, their tower-free frames as the renderer's backgrounds.
+        #[arg(long)]
+        real: bool,
         /// Train the detector on this device: `cpu`, or a CUDA index such as
         /// `0` (larger batches and more data workers there).
         #[arg(long, default_value = "cpu")]
@@ -263,6 +275,8 @@ fn main() -> anyhow::Result<()> {
             detector_only,
             from_scratch,
             init,
+            freeze,
+            real,
             device,
             data,
             data_names,
@@ -284,6 +298,8 @@ fn main() -> anyhow::Result<()> {
                 detector_only,
                 from_scratch,
                 init,
+                freeze,
+                real,
                 device,
                 mix: train::MixOptions {
                     data,

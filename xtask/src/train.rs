@@ -35,6 +35,7 @@ use anyhow::{Context, bail};
 
 use crate::{build_release, run, target_dir};
 
+#[derive(Clone)]
 pub struct TrainOptions {
     pub foreground: bool,
     pub ship: bool,
@@ -47,6 +48,8 @@ pub struct TrainOptions {
     pub detector_only: bool,
     pub from_scratch: bool,
     pub init: Option<PathBuf>,
+    pub freeze: Option<u32>,
+    pub real: bool,
     pub device: String,
     pub mix: MixOptions,
     pub card: bool,
@@ -54,6 +57,7 @@ pub struct TrainOptions {
 }
 
 /// Labelled images mixed with the rendered frames (`training/mix.py`).
+#[derive(Clone)]
 pub struct MixOptions {
     pub data: Vec<PathBuf>,
     pub data_names: Option<String>,
@@ -84,13 +88,14 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
         );
     }
     let python = ensure_venv(root)?;
+    let (options, mix_options) = &with_real_data(root, &python, &work, options)?;
     let rendered = work.join("dataset");
     if !rendered.join("data.yaml").exists() {
         render_dataset(root, &rendered, options)?;
     }
-    let mixing = !options.mix.data.is_empty();
+    let mixing = !mix_options.data.is_empty();
     let dataset = if mixing {
-        mix(root, &python, &work, &rendered, &options.mix)?
+        mix(root, &python, &work, &rendered, mix_options)?
     } else {
         rendered.clone()
     };
@@ -98,6 +103,7 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
     let init = if options.continue_run {
         Some(archive_finished_run(&work, &run_dir)?)
     } else if let Some(init) = &options.init {
+        let init = &resolve_init(root, init);
         if !init.is_file() {
             bail!("--init {}: no such checkpoint", init.display());
         }
@@ -107,6 +113,14 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
     } else {
         None
     };
+    // A COCO start freezes its backbone first.
+    let freeze = options
+        .freeze
+        .unwrap_or(if options.init.as_deref() == Some(Path::new(COCO)) {
+            10
+        } else {
+            0
+        });
     // Their own classes type the boxes: no classifier trained on rendered A-D crops.
     let detector_only = options.detector_only || mixing;
     // The detector, then the tower-type classifier on its dataset's crops (a
@@ -136,11 +150,12 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
         .arg(&run_dir)
         .arg(options.hours.to_string())
         .arg(init.as_deref().unwrap_or(Path::new("")))
+        .env("TOWERNAV_TRAIN_FREEZE", freeze.to_string())
         .arg(root.join("training").join("train_types.py"))
         .arg(&types_dir)
         .arg(root.join("training").join("quantize.py"))
         // The quantizer's own arguments, "$@" after `shift 9`.
-        .args(quantize_args(&work, &dataset, !detector_only))
+        .args(quantize_args(&work, &dataset, !detector_only, options.real))
         .env("OMP_WAIT_POLICY", "PASSIVE")
         .env("TOWERNAV_TRAIN_DEVICE", &options.device)
         .env("TOWERNAV_XTASK", std::env::current_exe()?)
@@ -150,6 +165,65 @@ pub fn train(root: &Path, options: &TrainOptions, ort: Option<&Path>) -> anyhow:
         return run(&mut cmd);
     }
     spawn_in_background(cmd, &work, &pid_file, options.hours, mixing)
+}
+
+/// `--init coco`: the COCO-trained YOLOv5n beside the project.
+const COCO: &str = "coco";
+
+fn resolve_init(root: &Path, init: &Path) -> PathBuf {
+    if init == Path::new(COCO) {
+        root.join("..")
+            .join("shared")
+            .join("weights")
+            .join("coco")
+            .join("yolov5n.pt")
+    } else {
+        init.to_path_buf()
+    }
+}
+
+/// `--real`: `training/real_data.py` stages the manifest's real photographs in
+/// `work/real`; its training folders join `--data` as one `tower` class (wooden
+/// poles, not the detector's, leave with their frames) and their tower-free
+/// frames join the renderer's backgrounds.
+fn with_real_data(
+    root: &Path,
+    python: &Path,
+    work: &Path,
+    options: &TrainOptions,
+) -> anyhow::Result<(TrainOptions, MixOptions)> {
+    let mut mix = options.mix.clone();
+    let mut backgrounds = options.backgrounds.clone();
+    if options.real {
+        let real = work.join("real");
+        run(Command::new(python)
+            .arg(root.join("training").join("real_data.py"))
+            .arg("--real")
+            .arg(root.join("..").join("shared").join("real"))
+            .arg("--out")
+            .arg(&real)
+            .current_dir(root))?;
+        let sources = std::fs::read_to_string(real.join("sources.txt"))
+            .with_context(|| format!("reading {}", real.join("sources.txt").display()))?;
+        mix.data.extend(sources.lines().map(PathBuf::from));
+        mix.data_names
+            .get_or_insert_with(|| "tower_lattice,tower_tucohy,tower_wooden".into());
+        mix.names.get_or_insert_with(|| "tower".into());
+        if mix.map.is_empty() {
+            mix.map = vec![
+                "tower_lattice=tower".into(),
+                "tower_tucohy=tower".into(),
+                "tower_wooden=-".into(),
+            ];
+        }
+        backgrounds.push(real.join("backgrounds"));
+    }
+    let options = TrainOptions {
+        backgrounds,
+        mix: mix.clone(),
+        ..options.clone()
+    };
+    Ok((options, mix))
 }
 
 /// The simulator's training set: `options.worlds` random worlds, randomized as asked.
@@ -259,10 +333,14 @@ fn spawn_in_background(
 
 /// `training/quantize.py`'s arguments for the run in `work`: the detector's
 /// export and, `with_types`, the classifier's, each calibrated on its own
-/// training inputs (a mixed dataset's: the first of their own frames).
-fn quantize_args(work: &Path, dataset: &Path, with_types: bool) -> Vec<PathBuf> {
+/// training inputs (a mixed dataset's: the first of a survey's own frames; the
+/// rendered ones when the mix is of real photographs, a few dozen seen from
+/// above, which would set the ranges for a camera the UAV does not fly).
+fn quantize_args(work: &Path, dataset: &Path, with_types: bool, real: bool) -> Vec<PathBuf> {
     let theirs = dataset.join("stage").join("1-train").join("images");
-    let frames = if theirs.is_dir() {
+    let frames = if real {
+        work.join("dataset").join("images").join("train")
+    } else if theirs.is_dir() {
         theirs
     } else {
         dataset.join("images").join("train")
@@ -292,7 +370,7 @@ pub fn quantize(root: &Path) -> anyhow::Result<()> {
     let work = target_dir(root).join("train");
     run(Command::new(python)
         .arg(root.join("training").join("quantize.py"))
-        .args(quantize_args(&work, &work.join("dataset"), true))
+        .args(quantize_args(&work, &work.join("dataset"), true, false))
         .current_dir(root))
 }
 
