@@ -67,6 +67,20 @@ pub enum EvalCommand {
         #[arg(long, default_value = "target/detector-eval")]
         out: PathBuf,
     },
+    /// The detector on a folder of your own photos, before you fly your
+    /// line: each photo annotated with its boxes (class and score), a contact
+    /// sheet of them all, and every box in detections.csv.
+    #[command(name = "detect")]
+    Detect {
+        #[command(flatten)]
+        detector: DetectorArgs,
+        /// A folder of photos (JPEG, PNG; and its subfolders, one level down).
+        #[arg(long)]
+        images: PathBuf,
+        /// Folder for annotated/, contact-sheet.jpg, detections.csv and detect.json.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Localization over random worlds and turning flights beside their
     /// lines, with random weather: the oracle and the YOLO detector on the
     /// rendered frames, every frame through the pipeline, scored against
@@ -194,6 +208,38 @@ impl EvalCommand {
                     upright: *upright,
                 };
                 towernav_eval::cmd::loc_bench::write_all(&options, out)
+            }
+            Self::Detect {
+                detector,
+                images,
+                out,
+            } => {
+                let section = detector.section();
+                let summary = towernav_eval::cmd::detect_photos::run(
+                    &section.model,
+                    section.type_model(),
+                    &detector.options(),
+                    images,
+                    out,
+                )?;
+                println!(
+                    "{} of {} photos have a box at score {} or more ({}); contact sheet: {}",
+                    summary.with_boxes(),
+                    summary.photos.len(),
+                    summary.min_score,
+                    summary.classes.join(", "),
+                    summary.contact_sheet.display()
+                );
+                for (photo, why) in &summary.failed {
+                    eprintln!("not read: {photo}: {why}");
+                }
+                anyhow::ensure!(
+                    !summary.photos.is_empty(),
+                    "none of the {} photos in {} could be read",
+                    summary.failed.len(),
+                    images.display()
+                );
+                Ok(())
             }
             Self::Tracking { out, seed, reid } => {
                 towernav_eval::cmd::tracking_eval::write_all(out, *seed, reid.as_deref())

@@ -3,6 +3,7 @@
 //! plots. They return `anyhow` errors, as the binary's commands do.
 
 pub mod demo_plots;
+pub mod detect_photos;
 pub mod detector_eval;
 pub mod loc_bench;
 pub mod loc_eval;
