@@ -10,7 +10,7 @@ use towernav_protocol::LandmarkRecord;
 
 use crate::error::{ImportError, RowProblem};
 use crate::fields::{BOOKKEEPING, Collector, OPTIONAL, REQUIRED, build_record};
-use crate::import::Parsed;
+use crate::parsed::Parsed;
 
 /// Parses and validates every row; records and problems both come back.
 /// Fails whole only when the file cannot be read as CSV at all.

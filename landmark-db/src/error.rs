@@ -34,7 +34,7 @@ pub enum DbError {
     #[error(
         "landmark database {path} is locked by another writer (the ground station or another \
          towernav-db) and stayed locked past the {}-second wait; nothing was written, try again",
-        crate::store::BUSY_TIMEOUT.as_secs()
+        crate::busy::BUSY_TIMEOUT.as_secs()
     )]
     Busy { path: String },
     /// `add` of an id that is stored already (perhaps by a concurrent writer).

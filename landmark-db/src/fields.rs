@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use towernav_protocol::LandmarkRecord;
 
 use crate::error::RowProblem;
-use crate::import::Parsed;
+use crate::parsed::Parsed;
 use crate::validate::validate;
 
 /// The record's columns, as every format names them: required, optional,

@@ -14,7 +14,7 @@ use towernav_protocol::{LandmarkRecord, TowerType};
 
 use crate::error::{ImportError, RowProblem};
 use crate::fields::{Collector, build_record};
-use crate::import::Parsed;
+use crate::parsed::Parsed;
 
 pub fn parse_geojson(text: &str, file: &str) -> Result<Parsed, ImportError> {
     let collection: FeatureCollection =
@@ -49,6 +49,16 @@ fn feature_record(at: &str, feature: &Feature) -> Result<LandmarkRecord, RowProb
             });
         }
     };
+    // A type is a name: a number there is most often a design code whose
+    // leading zeros or decimals were lost on the way, so it is refused, not guessed.
+    if let Some(JsonValue::Number(n)) = props.get("tower_type") {
+        return Err(RowProblem {
+            at: at.into(),
+            id: text(&props, "id").or(feature_id).unwrap_or_default(),
+            field: "tower_type".into(),
+            reason: format!("is the number {n}; a tower type is text: write it as \"{n}\""),
+        });
+    }
     let get = |name: &str| -> Option<String> {
         match name {
             "lon_deg" => Some(point[0].to_string()),
@@ -292,11 +302,17 @@ fn osm_records(nodes: Vec<OsmNode>, mapping: &OsmMapping) -> Parsed {
                     "is missing: towernav needs the tower's number as its id".into(),
                 )
             })?;
+            // The operator's rules first; then the type towernav's own export
+            // wrote, whatever its name; then the default.
+            let written = tag(OSM_TYPE_TAG)
+                .map(|t| TowerType::new(&t).map_err(|e| problem(OSM_TYPE_TAG, e.to_string())))
+                .transpose()?;
             let tower_type = mapping
                 .rules
                 .iter()
                 .find(|(k, v, _)| node.tags.get(k) == Some(v))
                 .map(|r| r.2)
+                .or(written)
                 .or(mapping.default)
                 .ok_or_else(|| {
                     problem(
@@ -441,6 +457,22 @@ mod tests {
             problems,
             [("feature 2", "geometry"), ("feature 3", "height_m")]
         );
+    }
+
+    #[test]
+    fn a_numeric_geojson_tower_type_is_refused_naming_the_feature() {
+        let text = r#"{"type":"FeatureCollection","features":[
+            {"type":"Feature","geometry":{"type":"Point","coordinates":[114.3,30.5]},"properties":{"id":"A1","tower_type":"110","ground_elev_m":20,"height_m":32}},
+            {"type":"Feature","geometry":{"type":"Point","coordinates":[114.3,30.6]},"properties":{"id":"A2","tower_type":110.0,"ground_elev_m":20,"height_m":32}}]}"#;
+        let parsed = parse_geojson(text, "x").expect("parse");
+        assert_eq!(parsed.records.len(), 1);
+        assert_eq!(parsed.records[0].tower_type.to_string(), "110");
+        let p = &parsed.problems[0];
+        assert_eq!(
+            (p.at.as_str(), p.id.as_str(), p.field.as_str()),
+            ("feature 2", "A2", "tower_type")
+        );
+        assert!(p.reason.contains("text"), "{}", p.reason);
     }
 
     #[test]

@@ -9,28 +9,9 @@ use towernav_protocol::LandmarkRecord;
 use crate::csv_io::parse_csv;
 use crate::error::{ImportError, RowProblem};
 use crate::formats::{OsmMapping, parse_geojson, parse_osm_xml, parse_overpass_json};
+pub use crate::parsed::Parsed;
 use crate::store::{Author, LandmarkDb};
 use towernav_geometry::GeoIndex;
-
-/// Records that parsed and validated, and every row that did not.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Parsed {
-    pub records: Vec<LandmarkRecord>,
-    pub problems: Vec<RowProblem>,
-}
-
-impl Parsed {
-    pub fn all_or_nothing(self, file: &str) -> Result<Vec<LandmarkRecord>, ImportError> {
-        if self.problems.is_empty() {
-            Ok(self.records)
-        } else {
-            Err(ImportError::Rejected {
-                file: file.into(),
-                problems: self.problems,
-            })
-        }
-    }
-}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {

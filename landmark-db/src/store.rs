@@ -6,6 +6,7 @@ use std::path::Path;
 use rusqlite::{Connection, OptionalExtension, Transaction, TransactionBehavior, params};
 use towernav_protocol::{LandmarkChange, LandmarkChangeOp, LandmarkRecord, TowerType};
 
+use crate::busy::BUSY_TIMEOUT;
 use crate::error::DbError;
 use crate::validate::validate;
 
@@ -82,9 +83,6 @@ pub struct LandmarkDb {
     conn: Connection,
     path: String,
 }
-
-/// How long a writer waits for another's lock before it gives up.
-pub const BUSY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// What `edit` did: nothing (no such tower), the edit's own refusal, or the
 /// tower as stored with its revision.
