@@ -182,7 +182,7 @@ impl DemoRun {
             "throughput         {:.1} frames/s over {:.1} s; peak RSS {}",
             summary.record.frames as f64 / summary.record.wall_seconds.max(1e-9),
             summary.record.wall_seconds,
-            crate::edge_cmd::peak_rss_mb()
+            crate::peak_rss::peak_rss_mb()
                 .map_or_else(|| "unknown".into(), |mb| format!("{mb:.0} MB"))
         );
         std::fs::create_dir_all(&self.out)

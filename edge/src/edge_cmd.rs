@@ -38,6 +38,7 @@ use crate::daemon::source::{FfmpegSource, FrameSource, ImageFolderSource};
 use crate::daemon::worker::Worker;
 use crate::landmark_sync::LandmarkSync;
 use crate::node::{EdgeNode, open_session_as, wait_for_peer};
+pub use crate::peak_rss::peak_rss_mb;
 
 /// Run the daemon as `config` says until the source ends or `stop` is set.
 /// With `demo` (demo build), listen on loopback like a ground station and end
@@ -476,14 +477,6 @@ fn warn_drops(config: &EdgeConfig, summary: &RunSummary) {
     if let Some(share) = dropped_share(summary.dropped, summary.record.frames) {
         println!("warning: {}", drop_advice(share, config.source.pacing()));
     }
-}
-
-/// The process's peak resident set (VmHWM), from /proc on Linux.
-pub fn peak_rss_mb() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1024.0)
 }
 
 /// SIGINT or SIGTERM: stop taking frames; what is queued is finished and published.

@@ -14,6 +14,7 @@ pub mod landmark_sync;
 #[cfg(not(feature = "demo"))]
 pub mod no_sim;
 pub mod node;
+pub mod peak_rss;
 pub mod replay;
 pub mod survey;
 

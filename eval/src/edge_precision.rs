@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use crate::real_score::ScoredImage;
+use crate::map_eval::ScoredImage;
 
 /// The rows: labelled box heights in pixels of the image, from each bound
 /// up to the next.

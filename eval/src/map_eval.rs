@@ -12,6 +12,15 @@ pub const HEIGHT_BANDS: [(f64, f64); 4] = [
     (300.0, f64::INFINITY),
 ];
 
+/// One image: its labels (folder classes) and the model's boxes (model classes).
+#[derive(Debug, Clone, Default)]
+pub struct ScoredImage {
+    /// The image's width and height, pixels: a label at its edge is cut there.
+    pub frame: (f64, f64),
+    pub labels: Vec<Labelled>,
+    pub boxes: Vec<Scored>,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Labelled {
     pub bbox: PixelBox,

@@ -8,16 +8,8 @@
 use serde::Serialize;
 
 use crate::edge_precision::{EdgePrecision, edge_precision};
+pub use crate::map_eval::ScoredImage;
 use crate::map_eval::{ClassMetrics, Labelled, MapAccumulator, Scored, restrict};
-
-/// One image: its labels (folder classes) and the model's boxes (model classes).
-#[derive(Debug, Clone, Default)]
-pub struct ScoredImage {
-    /// The image's width and height, pixels: a label at its edge is cut there.
-    pub frame: (f64, f64),
-    pub labels: Vec<Labelled>,
-    pub boxes: Vec<Scored>,
-}
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Row {

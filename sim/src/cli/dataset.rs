@@ -17,9 +17,9 @@ use towernav_sim::{
     Backdrop, Conditions, FrameBuffers, FrameTruth, LensEffects, Renderer, Scenario,
 };
 
-use crate::cli::flight_cmd::progress;
 use crate::cli::mot;
 use crate::cli::photos::PhotoLibrary;
+use crate::cli::progress::progress;
 
 pub struct DatasetOptions {
     pub worlds: usize,

@@ -4,27 +4,16 @@
 use std::path::Path;
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
 use towernav_geometry::Attitude;
 use towernav_sim::replay::ReplaySource;
 use towernav_sim::{Conditions, FrameTruth, Renderer, Scenario};
 
 use crate::cli::flight_dataset::FlightDataset;
 use crate::cli::mot;
+use crate::cli::progress::progress;
 use crate::cli::tlog::{LogRow, TlogWriter};
 use crate::cli::video::VideoWriter;
 use towernav_sim::gnss::GnssParams;
-
-pub fn progress(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} {per_sec} eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message(what.to_string());
-    bar
-}
 
 /// What `towernav-sim flight` writes beside its CSV files.
 pub struct FlightOutputs<'a> {

@@ -7,5 +7,6 @@ pub mod flight_dataset;
 pub mod mot;
 pub mod overlay;
 pub mod photos;
+pub mod progress;
 pub mod tlog;
 pub mod video;
