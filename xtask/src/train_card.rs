@@ -97,6 +97,7 @@ pub fn write(root: &Path, work: &Path, ort: &Path) -> anyhow::Result<()> {
             )?;
         }
     }
+    real_photos(&mut card, &edge, &model, &shipped, work, ort, root)?;
     let flag = if keeps_classifier {
         ""
     } else {
@@ -123,6 +124,73 @@ pub fn write(root: &Path, work: &Path, ort: &Path) -> anyhow::Result<()> {
         path.display(),
         model.display()
     );
+    Ok(())
+}
+
+/// `--real`: the manifest's held-out sources and tower-free frames
+/// (`work/real/held-out.txt`, `negatives.txt`, from `training/real_data.py`),
+/// scored at the daemon's threshold for this model and the shipped one.
+/// Boxes match whatever their class; wooden poles are neither hits nor misses.
+fn real_photos(
+    card: &mut String,
+    edge: &Path,
+    model: &Path,
+    shipped: &Path,
+    work: &Path,
+    ort: &Path,
+    root: &Path,
+) -> anyhow::Result<()> {
+    let list = |name: &str| -> Vec<String> {
+        std::fs::read_to_string(work.join("real").join(name))
+            .map(|t| {
+                t.lines()
+                    .filter(|l| !l.trim().is_empty())
+                    .map(str::to_owned)
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let (held_out, negatives) = (list("held-out.txt"), list("negatives.txt"));
+    if held_out.is_empty() && negatives.is_empty() {
+        return Ok(());
+    }
+    writeln!(
+        card,
+        "## Real photographs kept out of training (training/data/real-sources.csv)\n"
+    )?;
+    let cases = held_out
+        .iter()
+        .map(|f| (f, "--images"))
+        .chain(negatives.iter().map(|f| (f, "--negatives")));
+    for (folder, flag) in cases {
+        writeln!(card, "### {folder}\n")?;
+        for (what, onnx) in [("this model", model), ("the shipped model", shipped)] {
+            let score = Command::new(edge)
+                .arg("eval-detector")
+                .args([flag, folder.as_str()])
+                .args(["--names", "tower_lattice,tower_tucohy,tower_wooden"])
+                .args(["--dont-care", "tower_wooden", "--model"])
+                .arg(onnx)
+                .arg("--out")
+                .arg(work.join("run").join("card-eval"))
+                .env("ORT_DYLIB_PATH", ort)
+                .current_dir(root)
+                .output()
+                .with_context(|| format!("running {}", edge.display()))?;
+            if !score.status.success() {
+                bail!(
+                    "eval-detector {flag} {folder} with {} failed:\n{}",
+                    onnx.display(),
+                    String::from_utf8_lossy(&score.stderr)
+                );
+            }
+            writeln!(
+                card,
+                "#### {what}\n\n```\n{}```\n",
+                String::from_utf8_lossy(&score.stdout)
+            )?;
+        }
+    }
     Ok(())
 }
 
