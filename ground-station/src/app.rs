@@ -521,7 +521,7 @@ mod tests {
     }
 
     #[test]
-    fn the_fleet_panel_shows_each_uav_and_warns_when_its_poses_stop() {
+    fn the_fleet_panel_shows_each_uav_and_warns_when_it_goes_quiet() {
         let (tx, _commands, app) = app();
         tx.send(NetEvent::Alive {
             uav: NodeId::new("uav1").expect("valid"),
@@ -545,10 +545,10 @@ mod tests {
             Some("uav1")
         );
 
-        // Poses stop: after two seconds the panel says so.
+        // Everything stops: after two seconds the panel says so.
         now.set(4.0);
         harness.run();
-        harness.get_by_label("STALE: no pose for 4.0 s");
+        harness.get_by_label("STALE: nothing heard for 4.0 s");
     }
 
     #[test]

@@ -207,11 +207,14 @@ fn upload(ui: &egui::Ui, state: &mut CameraState, uav: &NodeId, preview: &Decode
 fn frozen(ui: &mut egui::Ui, rect: Rect, link: Link) {
     let (text, color) = match link {
         Link::Lost(Some(age)) => (
-            format!("LINK LOST\nlast frame {age:.0} s ago"),
+            format!("LINK LOST\nnothing heard for {age:.0} s"),
             Color32::RED,
         ),
         Link::Lost(None) => ("LINK LOST".to_owned(), Color32::RED),
-        Link::Stale(age) => (format!("STALE\nlast frame {age:.1} s ago"), Color32::ORANGE),
+        Link::Stale(age) => (
+            format!("STALE\nnothing heard for {age:.1} s"),
+            Color32::ORANGE,
+        ),
         Link::Live | Link::Waiting => return,
     };
     let painter = ui.painter();

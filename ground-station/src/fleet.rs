@@ -3,7 +3,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use towernav_geometry::{Datum, Geodetic};
-use towernav_protocol::{NodeId, PoseEstimate, StatusHeartbeat, TrackReport};
+use towernav_protocol::{EdgeState, NodeId, PoseEstimate, StatusHeartbeat, TrackReport};
 
 use crate::corrections::Corrections;
 use crate::events::DecodedPreview;
@@ -11,23 +11,48 @@ pub use crate::events::NetEvent;
 
 /// Poses kept per UAV for its trail on the map.
 pub const TRAIL_LEN: usize = 5000;
-/// A UAV whose last pose is older than this is stale.
+/// A UAV from which nothing at all came for this long is late; a pose this
+/// old is no longer a current fix. The edge sends status every second and
+/// tracks and previews with every frame, so two seconds of silence is news.
 pub const STALE_AFTER_S: f64 = 2.0;
 /// A UAV silent for this long, or whose liveliness token went, has lost its
-/// link: everything shown of it is history.
+/// link: everything shown of it is history. (QGroundControl calls a link lost
+/// after 3.5 s without a heartbeat; the edge's status comes every second.)
 pub const LOST_AFTER_S: f64 = 5.0;
 
-/// How current what the ground station shows of a UAV is.
+/// Whether the ground station hears a UAV: any message counts (pose, status,
+/// tracks, camera frame), not only poses. A UAV out of sight of towers is
+/// heard, and has no fix: that is [`Nav`], not a lost link.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Link {
-    /// No pose heard yet, and no sign of loss.
+    /// Nothing heard yet, and no sign of loss.
     Waiting,
     Live,
-    /// Poses are late (seconds since the last).
+    /// Messages are late (seconds since the last of any kind).
     Stale(f64),
     /// The link is gone: the edge left, the network stopped, or it has been
-    /// silent past [`LOST_AFTER_S`] (seconds since the last pose, if any).
+    /// silent past [`LOST_AFTER_S`] (seconds since the last message, if any).
     Lost(Option<f64>),
+}
+
+/// Whether the UAV knows where it is, from its poses and its status's state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Nav {
+    /// Neither a pose nor a status yet.
+    Unknown,
+    /// Poses are coming (seconds since the last).
+    Fix(f64),
+    /// No tower in the last frames: the filter predicts (seconds since the
+    /// last pose, if any).
+    Coasting(Option<f64>),
+    /// No estimate (seconds since the last pose, if any).
+    NoFix(Option<f64>),
+}
+
+impl Nav {
+    pub fn is_fix(self) -> bool {
+        matches!(self, Nav::Fix(_))
+    }
 }
 
 impl Link {
@@ -72,6 +97,9 @@ pub struct UavView {
     pub preview: Option<DecodedPreview>,
     /// The liveliness token: `None` until one was seen either way.
     pub alive: Option<bool>,
+    /// When anything from this UAV last arrived (pose, status, tracks,
+    /// camera frame), on the ground station's clock.
+    pub last_heard_at_s: Option<f64>,
 }
 
 impl UavView {
@@ -144,6 +172,16 @@ impl Fleet {
     }
 
     pub fn apply(&mut self, event: NetEvent, now_s: f64) {
+        let heard = match &event {
+            NetEvent::Pose(p) => Some(p.uav.clone()),
+            NetEvent::Tracks(t) => Some(t.uav.clone()),
+            NetEvent::Status(s) => Some(s.uav.clone()),
+            NetEvent::Preview(p) => Some(p.meta.uav.clone()),
+            _ => None,
+        };
+        if let Some(uav) = heard {
+            self.uavs.entry(uav).or_default().last_heard_at_s = Some(now_s);
+        }
         match event {
             NetEvent::Pose(p) => {
                 let en = self.en(p.lat_deg, p.lon_deg, p.alt_m);
@@ -226,10 +264,36 @@ impl Fleet {
             .map(|t| (now_s - t).max(0.0))
     }
 
-    /// How current this UAV's data is: a gone liveliness token or a stopped
-    /// network is a lost link at once, silence grows from stale to lost.
-    pub fn link(&self, uav: &NodeId, now_s: f64) -> Link {
+    /// Seconds since anything from the UAV arrived.
+    pub fn heard_age_s(&self, uav: &NodeId, now_s: f64) -> Option<f64> {
+        self.uavs
+            .get(uav)?
+            .last_heard_at_s
+            .map(|t| (now_s - t).max(0.0))
+    }
+
+    /// Whether the UAV knows where it is: its status's state when it says it
+    /// has none (or is coasting), else whether its poses are current.
+    pub fn nav(&self, uav: &NodeId, now_s: f64) -> Nav {
+        let Some(view) = self.uavs.get(uav) else {
+            return Nav::Unknown;
+        };
         let age = self.pose_age_s(uav, now_s);
+        match (view.status.as_ref().map(|s| s.state), age) {
+            (Some(EdgeState::NoFix | EdgeState::Initializing), a) => Nav::NoFix(a),
+            (Some(EdgeState::Coasting), a) => Nav::Coasting(a),
+            (_, Some(a)) if a <= STALE_AFTER_S => Nav::Fix(a),
+            (_, a @ Some(_)) => Nav::NoFix(a),
+            (Some(EdgeState::Localized), None) => Nav::NoFix(None),
+            (None, None) => Nav::Unknown,
+        }
+    }
+
+    /// How current this UAV's data is: a gone liveliness token or a stopped
+    /// network is a lost link at once, silence (of every kind of message)
+    /// grows from stale to lost.
+    pub fn link(&self, uav: &NodeId, now_s: f64) -> Link {
+        let age = self.heard_age_s(uav, now_s);
         let gone = self.uavs.get(uav).and_then(|v| v.alive) == Some(false);
         match age {
             _ if gone || self.network_error.is_some() => Link::Lost(age),
@@ -279,6 +343,26 @@ mod tests {
             16.2,
         );
         assert!(fleet.link(&uav, 16.2).is_lost(), "the edge left");
+    }
+
+    #[test]
+    fn a_uav_heard_without_poses_keeps_its_link_and_has_no_fix() {
+        use crate::test_support::frame_events;
+        let mut fleet = fleet();
+        let uav = NodeId::new("uav1").expect("valid");
+        assert_eq!(fleet.nav(&uav, 0.0), Nav::Unknown);
+        fleet.apply(NetEvent::Pose(pose("uav1", 30.52, 114.36, 1)), 10.0);
+        assert_eq!(fleet.nav(&uav, 11.0), Nav::Fix(1.0));
+        // Camera frames and tracks, no pose, for 30 s.
+        for t in 11..=40 {
+            for e in frame_events("uav1", u64::from(t as u32)) {
+                fleet.apply(e, f64::from(t));
+            }
+        }
+        assert!(fleet.link(&uav, 40.5).is_live());
+        assert_eq!(fleet.nav(&uav, 40.0), Nav::NoFix(Some(30.0)));
+        // Silence of every kind loses the link.
+        assert_eq!(fleet.link(&uav, 46.0), Link::Lost(Some(6.0)));
     }
 
     #[test]

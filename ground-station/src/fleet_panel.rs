@@ -6,7 +6,7 @@
 use egui::{Color32, RichText};
 use towernav_protocol::{EdgeState, Health, NodeId, StatusHeartbeat};
 
-use crate::fleet::{Fleet, Link, UavView};
+use crate::fleet::{Fleet, Link, Nav, UavView};
 use crate::map_view::uav_color;
 
 /// How long the panel waits for a first edge before saying the link may be wrong.
@@ -45,7 +45,7 @@ pub fn show(
         ui.separator();
         let link = fleet.link(uav, now_s);
         uav_header(ui, i, uav, view, link, selected);
-        pose_lines(ui, view, link, now_s);
+        pose_lines(ui, view, link, fleet.nav(uav, now_s));
         if let Some(s) = &view.status {
             status_lines(ui, s, link.is_live());
         }
@@ -137,30 +137,57 @@ fn uav_header(
     });
 }
 
-/// Pose rate and age (or STALE, or LINK LOST), the last position with its
-/// 1-sigma, heading and height above the ellipsoid, and the towers used.
-fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, now_s: f64) {
-    match link {
-        Link::Lost(Some(age)) => {
-            ui.colored_label(Color32::RED, format!("LINK LOST: no pose for {age:.1} s"));
+/// The link (LINK LOST, STALE: nothing heard) or, while the UAV is heard,
+/// its navigation: the fix with its pose rate, COASTING or NO FIX with the
+/// age of the last pose. Then the last position with its 1-sigma, heading
+/// and height above the ellipsoid, and the towers used.
+fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, nav: Nav) {
+    let last_pose = |age: Option<f64>| {
+        age.map_or_else(
+            || "no pose yet".to_owned(),
+            |a| format!("last pose {a:.0} s ago"),
+        )
+    };
+    match (link, nav) {
+        (Link::Lost(Some(age)), _) => {
+            ui.colored_label(
+                Color32::RED,
+                format!("LINK LOST: nothing heard for {age:.1} s"),
+            );
         }
-        Link::Lost(None) => {
-            ui.colored_label(Color32::RED, "LINK LOST before any pose");
+        (Link::Lost(None), _) => {
+            ui.colored_label(Color32::RED, "LINK LOST before anything was heard");
         }
-        Link::Stale(age) => {
-            ui.colored_label(Color32::ORANGE, format!("STALE: no pose for {age:.1} s"));
+        (Link::Stale(age), _) => {
+            ui.colored_label(
+                Color32::ORANGE,
+                format!("STALE: nothing heard for {age:.1} s"),
+            );
         }
-        Link::Live => {
-            let age = view.last_pose_at_s.map_or(0.0, |t| (now_s - t).max(0.0));
+        (_, Nav::Fix(age)) => {
             ui.label(format!(
-                "{:.0} poses/s, last {age:.1} s ago",
+                "FIX: {:.0} poses/s, last {age:.1} s ago",
                 view.pose_rate_hz()
             ));
         }
-        Link::Waiting => {
+        (_, Nav::Coasting(age)) => {
+            ui.colored_label(
+                Color32::ORANGE,
+                format!("COASTING: no tower in sight, {}", last_pose(age)),
+            );
+        }
+        (_, Nav::NoFix(age)) => {
+            ui.colored_label(
+                Color32::YELLOW,
+                format!("NO FIX (link up): {}", last_pose(age)),
+            );
+        }
+        (_, Nav::Unknown) => {
             ui.label("no pose yet");
         }
     }
+    // A position is current only while the UAV is heard and has a fix.
+    let current = link.is_live() && nav.is_fix();
     if let Some(p) = &view.last_pose {
         let sigma = (p.covariance[0][0] + p.covariance[1][1]).max(0.0).sqrt();
         // The pose's yaw is counter-clockwise from east; a compass heading is
@@ -174,12 +201,12 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, now_s: f64) {
             "{:.6}, {:.6}  ±{sigma:.1} m\nheight {:.1} m above the WGS84 ellipsoid\nheading {heading:.0} deg{speed}",
             p.lat_deg, p.lon_deg, p.alt_m
         );
-        if link.is_live() {
+        if current {
             ui.label(text);
         } else {
             ui.weak(format!("last known: {text}"));
         }
-        if !p.towers_used.is_empty() && link.is_live() {
+        if !p.towers_used.is_empty() && current {
             ui.label(format!("fix from {}", p.towers_used.join(" ")));
         }
     }

@@ -11,7 +11,7 @@ use egui_plot::{
 };
 use towernav_protocol::{NodeId, TowerType};
 
-use crate::fleet::{Fleet, Link};
+use crate::fleet::{Fleet, Link, Nav};
 use crate::tiles::TileLayer;
 
 /// A tower as the map draws it: east/north about the map datum.
@@ -254,7 +254,12 @@ fn draw_fleet(
             plot.line(Line::new(uav.as_str(), stretch).color(color).width(width));
         }
         let link = fleet.link(uav, now_s);
-        if let Some(p) = view.last_pose.as_ref().filter(|_| link.is_live()) {
+        let nav = fleet.nav(uav, now_s);
+        if let Some(p) = view
+            .last_pose
+            .as_ref()
+            .filter(|_| link.is_live() && nav.is_fix())
+        {
             let cov = [
                 [p.covariance[0][0], p.covariance[0][1]],
                 [p.covariance[1][0], p.covariance[1][1]],
@@ -276,10 +281,13 @@ fn draw_fleet(
         }
         // A UAV that stopped talking keeps its last place, greyed, without the
         // ellipse and sightlines that would say it still sees towers.
-        let (marker, name) = match link {
-            Link::Live | Link::Waiting => (color, uav.to_string()),
-            Link::Stale(_) => (Color32::GRAY, format!("{uav} (late)")),
-            Link::Lost(_) => (Color32::RED, format!("{uav}: LINK LOST, last known")),
+        // A UAV heard but without a fix keeps its last fix, amber, named so.
+        let (marker, name) = match (link, nav) {
+            (Link::Lost(_), _) => (Color32::RED, format!("{uav}: LINK LOST, last known")),
+            (Link::Stale(_), _) => (Color32::GRAY, format!("{uav} (late)")),
+            (_, Nav::Coasting(_)) => (Color32::ORANGE, format!("{uav}: coasting, last fix")),
+            (_, Nav::NoFix(_)) => (Color32::YELLOW, format!("{uav}: NO FIX, last fix")),
+            (Link::Live | Link::Waiting, _) => (color, uav.to_string()),
         };
         plot.points(
             Points::new(name, vec![last])

@@ -70,11 +70,11 @@ fn a_lost_link_is_loud_in_the_panel_and_the_camera_and_nothing_stays_green() {
     harness.get_by_label("localized, 30 frames/s");
     assert!(harness.query_by_label_contains("LINK LOST").is_none());
 
-    // Poses stop: late first, then lost.
+    // Everything stops: late first, then lost.
     now.set(3.0);
     harness.run();
-    harness.get_by_label("STALE: no pose for 3.0 s");
-    harness.get_by_label("STALE last frame 3.0 s ago");
+    harness.get_by_label("STALE: nothing heard for 3.0 s");
+    harness.get_by_label("STALE nothing heard for 3.0 s");
     assert!(
         harness.query_by_label("health ok").is_none(),
         "no green health on old news"
@@ -83,8 +83,8 @@ fn a_lost_link_is_loud_in_the_panel_and_the_camera_and_nothing_stays_green() {
     now.set(12.0);
     harness.run();
     harness.get_by_label("LINK LOST: uav1 (no data for 12 s)");
-    harness.get_by_label("LINK LOST: no pose for 12.0 s");
-    harness.get_by_label("LINK LOST last frame 12 s ago");
+    harness.get_by_label("LINK LOST: nothing heard for 12.0 s");
+    harness.get_by_label("LINK LOST nothing heard for 12 s");
     harness.get_by_label_contains("last known: health Ok, localized");
     assert!(harness.query_by_label("health ok").is_none());
     assert!(harness.query_by_label("online").is_none());
@@ -104,6 +104,48 @@ fn a_lost_link_is_loud_in_the_panel_and_the_camera_and_nothing_stays_green() {
     .expect("send");
     harness.run();
     harness.get_by_label_contains("LINK LOST: uav1");
+}
+
+#[test]
+fn a_lost_fix_is_not_a_lost_link() {
+    let (tx, _commands, mut harness, now) = live();
+    harness.get_by_label_contains("FIX: ");
+    // Out of sight of towers: no more poses, but status, tracks and camera
+    // frames keep coming every second, the status saying there is no fix.
+    for t in 1..=40 {
+        now.set(f64::from(t));
+        tx.send(NetEvent::Status(StatusHeartbeat {
+            time_s: f64::from(t),
+            state: EdgeState::NoFix,
+            ..status()
+        }))
+        .expect("send");
+        for e in frame_events("uav1", 5 + u64::from(t as u32)) {
+            tx.send(e).expect("send");
+        }
+        harness.run();
+    }
+    assert!(
+        harness.query_by_label_contains("LINK LOST").is_none(),
+        "heard every second: the link is up"
+    );
+    assert!(harness.query_by_label_contains("STALE").is_none());
+    harness.get_by_label("NO FIX (link up): last pose 40 s ago");
+    harness.get_by_label("online");
+    harness.get_by_label_contains("last known: 30.520500");
+    // Coasting is its own state.
+    tx.send(NetEvent::Status(StatusHeartbeat {
+        time_s: 41.0,
+        state: EdgeState::Coasting,
+        ..status()
+    }))
+    .expect("send");
+    harness.run();
+    harness.get_by_label("COASTING: no tower in sight, last pose 40 s ago");
+    // Then the edge goes quiet too: now the link is lost.
+    now.set(52.0);
+    harness.run();
+    harness.get_by_label("LINK LOST: nothing heard for 12.0 s");
 }
 
 /// Clicks track 7's box, picks B1 and sends it; returns what was published.
