@@ -81,6 +81,11 @@ impl TypeClassifier {
         &self.classes.names
     }
 
+    /// The tower types it names, in output order.
+    pub fn types(&self) -> &[towernav_protocol::TowerType] {
+        self.classes.types()
+    }
+
     /// Class probabilities for each box, one row of `classes` per box.
     pub fn probabilities(
         &mut self,

@@ -120,8 +120,11 @@ impl YoloDetector {
             Some(path) => {
                 let classifier = TypeClassifier::load(path, options.threads, options.cuda)?;
                 // Its probabilities are blended with the detector's class
-                // scores one for one: the classes must be the same, in order.
-                if classifier.class_names() != detector.info.classes.as_slice() {
+                // scores one for one: the classes must be the same, in order;
+                // or the detector finds towers of one class (`tower`) and the
+                // classifier alone names their types.
+                let untyped = detector.info.classes.len() == 1;
+                if !untyped && classifier.class_names() != detector.info.classes.as_slice() {
                     return Err(OnnxError::Model {
                         path: path.to_path_buf(),
                         reason: format!(
@@ -141,6 +144,14 @@ impl YoloDetector {
     /// Let `classifier` name each box's type from its full-resolution crop.
     pub fn with_type_classifier(mut self, path: &Path, classifier: TypeClassifier) -> Self {
         self.info.type_model = Some(path.to_path_buf());
+        if self.classes.len() == 1 {
+            // A one-class detector has no type scores to blend.
+            self.post.detector_type_weight = 0.0;
+            tracing::info!(
+                classes = ?classifier.class_names(),
+                "one-class detector: the type classifier alone names each tower's type"
+            );
+        }
         self.types = Some(classifier);
         // The classifier names the type: rank boxes by how sure the detector
         // is of a tower, whatever type it guessed.
@@ -148,9 +159,13 @@ impl YoloDetector {
         self
     }
 
-    /// The tower types it tells apart, in class order.
+    /// The tower types its boxes carry, in class order: the type
+    /// classifier's when it names them, else the detector's own.
     pub fn classes(&self) -> &[TowerType] {
-        self.classes.types()
+        match &self.types {
+            Some(classifier) => classifier.types(),
+            None => self.classes.types(),
+        }
     }
 
     pub fn info(&self) -> &DetectorInfo {

@@ -173,7 +173,7 @@ fn wrong_type_classifiers_are_refused_at_load_saying_why() {
     assert!(err.contains("fake-types-dynamic.onnx"), "{err}");
     // A classifier must name the detector's own classes, in its order.
     let err = YoloDetector::load_with_types(
-        &fixture("fake-v8-tower.onnx"),
+        &fixture("fake-v8-lattice.onnx"),
         Some(&fixture("fake-types.onnx")),
         &DetectorOptions::default(),
     )
@@ -181,9 +181,37 @@ fn wrong_type_classifiers_are_refused_at_load_saying_why() {
     .expect("refused")
     .to_string();
     assert!(
-        err.contains("fake-types.onnx") && err.contains("[\"tower\"]"),
+        err.contains("fake-types.onnx") && err.contains("[\"lattice\", \"tubular\"]"),
         "{err}"
     );
+}
+
+#[test]
+fn a_one_class_detector_takes_its_types_from_the_classifier_alone() {
+    // As the daemon runs it: blended, but a `tower` detector has no type to blend.
+    let mut detector = YoloDetector::load_with_types(
+        &fixture("fake-v8-tower.onnx"),
+        Some(&fixture("fake-types.onnx")),
+        &DetectorOptions::default(),
+    )
+    .expect("a tower detector with a type classifier loads");
+    assert_eq!(detector.classes(), TowerType::ALL.as_slice());
+    // Without the classifier it is a `tower` detector, finding the same box.
+    let mut plain = load(&fixture("fake-v8-tower.onnx")).expect("loads");
+    assert_eq!(plain.classes(), [TowerType::new("tower").expect("a name")]);
+    // The stand-in classifier reads blue as D and red as B.
+    for (colour, want) in [([0, 0, 255], TowerType::D), ([255, 0, 0], TowerType::B)] {
+        let frame = RgbImage::from_pixel(128, 64, Rgb(colour));
+        let dets = detector.detect(&frame, 0).expect("runs");
+        assert_eq!(dets.len(), 1, "{dets:?}");
+        assert_eq!(dets[0].tower_type, want, "{colour:?}");
+        let tower = plain.detect(&frame, 0).expect("runs");
+        assert_eq!(tower.len(), 1, "{tower:?}");
+        assert!(
+            dets[0].bbox.iou(&tower[0].bbox) > 0.999,
+            "{dets:?} {tower:?}"
+        );
+    }
 }
 
 #[test]
