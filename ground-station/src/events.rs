@@ -54,14 +54,41 @@ pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
         Ok(parsed) => parsed,
         Err(e) => return Some(rejected(e.to_string())),
     };
+    // The UAV is the one whose key the sample came on: the fleet's access
+    // rules let an edge publish on its own keys only, so a payload naming
+    // another UAV is an edge posing as it, and is dropped.
+    let own = |named: &NodeId| -> Result<(), String> {
+        if *named == parsed.uav {
+            Ok(())
+        } else {
+            Err(format!(
+                "payload names UAV {named} but came on {}'s key: dropped",
+                parsed.uav
+            ))
+        }
+    };
     let event = match parsed.topic {
-        Topic::Pose => decode(bytes).map(NetEvent::Pose),
-        Topic::Tracks => decode(bytes).map(NetEvent::Tracks),
-        Topic::Status => decode(bytes).map(NetEvent::Status),
-        Topic::Truth => decode(bytes).map(NetEvent::Truth),
-        Topic::CorrectionAck => decode(bytes).map(NetEvent::Ack),
+        Topic::Pose => decode(bytes)
+            .map_err(|e| e.to_string())
+            .and_then(|p: PoseEstimate| own(&p.uav).map(|()| NetEvent::Pose(p))),
+        Topic::Tracks => decode(bytes)
+            .map_err(|e| e.to_string())
+            .and_then(|t: TrackReport| own(&t.uav).map(|()| NetEvent::Tracks(t))),
+        Topic::Status => decode(bytes)
+            .map_err(|e| e.to_string())
+            .and_then(|s: StatusHeartbeat| own(&s.uav).map(|()| NetEvent::Status(s))),
+        Topic::Truth => decode(bytes)
+            .map_err(|e| e.to_string())
+            .and_then(|t: TruthPose| own(&t.uav).map(|()| NetEvent::Truth(t))),
+        Topic::CorrectionAck => decode(bytes)
+            .map_err(|e| e.to_string())
+            .and_then(|a: CorrectionAck| own(&a.uav).map(|()| NetEvent::Ack(a))),
         Topic::Preview => {
             return Some(match decode::<Preview>(bytes) {
+                Ok(meta) if meta.uav != parsed.uav => rejected(format!(
+                    "payload names UAV {} but came on {}'s key: dropped",
+                    meta.uav, parsed.uav
+                )),
                 Ok(meta) => match decode_jpeg(&meta.jpeg) {
                     Ok(image) => NetEvent::Preview(DecodedPreview {
                         meta,
@@ -76,7 +103,7 @@ pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
         // draws tracks): recorded, not decoded.
         Topic::Correction | Topic::Detections => return None,
     };
-    Some(event.unwrap_or_else(|e| rejected(e.to_string())))
+    Some(event.unwrap_or_else(rejected))
 }
 
 /// A liveliness sample: a token put or deleted on `towernav/<fleet>/alive/<uav>`.
@@ -134,6 +161,41 @@ mod tests {
             }
             other => panic!("expected a rejection, got {other:?}"),
         }
+    }
+
+    #[test]
+    fn a_payload_naming_another_uav_than_its_key_is_dropped_naming_both() {
+        let pose = crate::test_support::pose("u2", 30.52, 114.36, 1);
+        let bytes = encode(&pose).expect("encode");
+        match decode_sample(&key(Topic::Pose), &bytes) {
+            Some(NetEvent::Rejected { key: k, error }) => {
+                assert_eq!(k, key(Topic::Pose));
+                assert!(
+                    error.contains("u2") && error.contains("u1's key"),
+                    "{error}"
+                );
+            }
+            other => panic!("expected a rejection, got {other:?}"),
+        }
+        // On its own key the same pose is taken.
+        let own_key = Keys::new(NodeId::new("demo").expect("valid"))
+            .uav(&NodeId::new("u2").expect("valid"), Topic::Pose);
+        assert!(matches!(
+            decode_sample(&own_key, &bytes),
+            Some(NetEvent::Pose(_))
+        ));
+        // A forged refusal of another UAV's correction is dropped too.
+        let ack = CorrectionAck {
+            uav: NodeId::new("u2").expect("valid"),
+            request_id: 7,
+            accepted: false,
+            reason: Some("forged".into()),
+        };
+        let bytes = encode(&ack).expect("encode");
+        assert!(matches!(
+            decode_sample(&key(Topic::CorrectionAck), &bytes),
+            Some(NetEvent::Rejected { .. })
+        ));
     }
 
     #[test]

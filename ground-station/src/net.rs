@@ -91,13 +91,18 @@ struct Listener<'a, W: Fn()> {
     tx: &'a Sender<NetEvent>,
     wake: &'a W,
     recorder: Option<Recorder>,
+    /// A peer flooding bad payloads (or posing as another UAV) is logged
+    /// once per ten seconds; the panel counts every one.
+    rejected_log: towernav_core::log_limit::LogLimiter,
 }
 
 impl<W: Fn()> Listener<'_, W> {
     /// Hands an event to the UI; `false` once the UI has closed.
-    fn send(&self, event: NetEvent) -> bool {
-        if let NetEvent::Rejected { key, error } = &event {
-            tracing::warn!(%key, %error, "rejected payload");
+    fn send(&mut self, event: NetEvent) -> bool {
+        if let NetEvent::Rejected { key, error } = &event
+            && let Some(held_back) = self.rejected_log.allow(std::time::Instant::now())
+        {
+            tracing::warn!(%key, %error, held_back, "rejected payload");
         }
         let open = self.tx.send(event).is_ok();
         (self.wake)();
@@ -194,6 +199,7 @@ async fn listen(
         tx,
         wake,
         recorder: None,
+        rejected_log: towernav_core::log_limit::LogLimiter::default(),
     };
     loop {
         let open = tokio::select! {
