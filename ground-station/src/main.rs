@@ -148,7 +148,7 @@ fn main() -> anyhow::Result<()> {
                 Some(samples) => {
                     let (_tx, _commands, link) = NetLink::detached();
                     GsApp::new(db, link, options)?
-                        .replaying(ReplayPlayer::new(samples, cli.replay_speed))
+                        .replaying(ReplayPlayer::of(samples, cli.replay_speed))
                 }
                 None => GsApp::new(
                     db,
@@ -187,9 +187,12 @@ fn main() -> anyhow::Result<()> {
 fn replay_database(
     path: &std::path::Path,
     cli: &Cli,
-) -> anyhow::Result<(LandmarkDb, Vec<recording::RecordedSample>)> {
+) -> anyhow::Result<(LandmarkDb, recording::Recording)> {
     let samples = recording::read(path)?;
-    let towers = match recording::landmarks(path, &samples)? {
+    if let Some(cut) = &samples.cut_short {
+        tracing::warn!("{cut}");
+    }
+    let towers = match recording::landmarks(path, &samples.samples)? {
         Some(towers) => towers,
         None if cli.db.is_file() => {
             tracing::warn!(recording = %path.display(), db = %cli.db.display(), "the recording carries no towers: showing the database's");

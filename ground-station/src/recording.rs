@@ -8,6 +8,11 @@
 //!
 //! A replay is a [`ReplayPlayer`]: the recording and a clock the app moves
 //! each frame (paused, faster, sought), with no thread of its own.
+//!
+//! Messages go straight into the file, not into compressed chunks: a
+//! recording cut short (the ground station killed, the disk pulled) keeps
+//! every message written before the cut, and [`read`] replays up to the last
+//! whole one, saying where the recording ends.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -27,6 +32,8 @@ pub enum RecordingError {
     },
     #[error("recording {path}: the landmarks snapshot: {reason}")]
     Landmarks { path: PathBuf, reason: String },
+    #[error("recording {path}: not an MCAP recording (it does not start with MCAP's magic bytes)")]
+    NotMcap { path: PathBuf },
     #[error("recording {path}: {source}")]
     Mcap {
         path: PathBuf,
@@ -54,8 +61,10 @@ impl Recorder {
             path: path.into(),
             source,
         })?;
-        let writer =
-            mcap::Writer::new(BufWriter::new(file)).map_err(|source| RecordingError::Mcap {
+        let writer = mcap::WriteOptions::new()
+            .use_chunks(false)
+            .create(BufWriter::new(file))
+            .map_err(|source| RecordingError::Mcap {
                 path: path.into(),
                 source,
             })?;
@@ -155,27 +164,70 @@ impl RecordedSample {
     }
 }
 
-/// Every message of a recording, in log-time order.
-pub fn read(path: &Path) -> Result<Vec<RecordedSample>, RecordingError> {
+/// A recording as read: its messages, and where it ends early if it does.
+#[derive(Debug, Clone, Default)]
+pub struct Recording {
+    pub samples: Vec<RecordedSample>,
+    /// Why the file stops before its end (a recording cut short): every
+    /// whole message before the cut is in `samples`.
+    pub cut_short: Option<String>,
+}
+
+/// MCAP's magic, at the start of every recording.
+const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// Every whole message of a recording, in log-time order. A file that is
+/// not MCAP is refused; one cut short gives what it holds before the cut.
+pub fn read(path: &Path) -> Result<Recording, RecordingError> {
     let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
         path: path.into(),
         source,
     })?;
-    let mcap_err = |source| RecordingError::Mcap {
-        path: path.into(),
-        source,
-    };
-    let mut samples = Vec::new();
-    for message in mcap::MessageStream::new(&bytes).map_err(mcap_err)? {
-        let message = message.map_err(mcap_err)?;
-        samples.push(RecordedSample {
-            log_time_ns: message.log_time,
-            key: message.channel.topic.clone(),
-            payload: message.data.into_owned(),
+    // Cut inside the magic itself: a recording that never got a message.
+    if bytes.len() < MCAP_MAGIC.len() && MCAP_MAGIC.starts_with(&bytes) {
+        return Ok(Recording {
+            samples: Vec::new(),
+            cut_short: Some(format!(
+                "{} ends after {} bytes, before any message",
+                path.display(),
+                bytes.len()
+            )),
         });
     }
+    if !bytes.starts_with(MCAP_MAGIC) {
+        return Err(RecordingError::NotMcap { path: path.into() });
+    }
+    let stream = mcap::MessageStream::new(&bytes).map_err(|source| RecordingError::Mcap {
+        path: path.into(),
+        source,
+    })?;
+    let mut samples: Vec<RecordedSample> = Vec::new();
+    let mut cut_short = None;
+    for message in stream {
+        match message {
+            Ok(message) => samples.push(RecordedSample {
+                log_time_ns: message.log_time,
+                key: message.channel.topic.clone(),
+                payload: message.data.into_owned(),
+            }),
+            Err(e) => {
+                let last = samples.iter().map(|s| s.log_time_ns).max();
+                let first = samples.iter().map(|s| s.log_time_ns).min();
+                let span = match (first, last) {
+                    (Some(a), Some(b)) => format!(", {:.1} s of it", (b - a) as f64 * 1e-9),
+                    _ => String::new(),
+                };
+                cut_short = Some(format!(
+                    "{} ends early ({e}): replaying its first {} messages{span}",
+                    path.display(),
+                    samples.len()
+                ));
+                break;
+            }
+        }
+    }
     samples.sort_by_key(|s| s.log_time_ns);
-    Ok(samples)
+    Ok(Recording { samples, cut_short })
 }
 
 /// The landmarks a recording started with, if it carries them.
@@ -210,9 +262,19 @@ pub struct ReplayPlayer {
     pub speed: f64,
     pub paused: bool,
     last_wall_s: Option<f64>,
+    /// Said once, with the first events: where a recording cut short ends.
+    notice: Option<String>,
 }
 
 impl ReplayPlayer {
+    /// The player of a recording as read, its cut (if any) told to the operator.
+    pub fn of(recording: Recording, speed: f64) -> Self {
+        Self {
+            notice: recording.cut_short,
+            ..Self::new(recording.samples, speed)
+        }
+    }
+
     pub fn new(samples: Vec<RecordedSample>, speed: f64) -> Self {
         let t0_ns = samples.first().map_or(0, |s| s.log_time_ns);
         let duration_s = samples
@@ -227,6 +289,7 @@ impl ReplayPlayer {
             speed,
             paused: false,
             last_wall_s: None,
+            notice: None,
         }
     }
 
@@ -257,7 +320,12 @@ impl ReplayPlayer {
                 self.duration_s
             };
         }
-        let mut due = Vec::new();
+        let mut due: Vec<NetEvent> = self
+            .notice
+            .take()
+            .map(NetEvent::Notice)
+            .into_iter()
+            .collect();
         while let Some(s) = self.samples.get(self.cursor) {
             if (s.log_time_ns - self.t0_ns) as f64 * 1e-9 > self.position_s {
                 break;
@@ -308,12 +376,54 @@ mod tests {
             .expect("write");
         assert_eq!(rec.finish().expect("finish"), 5);
 
-        let samples = read(&path).expect("read");
+        let samples = read(&path).expect("read").samples;
         let events: Vec<NetEvent> = samples.iter().filter_map(RecordedSample::event).collect();
         assert_eq!(events.len(), 5);
         assert!(matches!(&events[0], NetEvent::Alive { alive: true, .. }));
         assert!(matches!(&events[2], NetEvent::Pose(p) if p.seq == 1));
         assert!(matches!(&events[4], NetEvent::Alive { alive: false, .. }));
+    }
+
+    #[test]
+    fn a_recording_cut_at_any_byte_replays_up_to_its_last_whole_message() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("whole.mcap");
+        let keys = Keys::new(NodeId::new("demo").expect("valid"));
+        let uav = NodeId::new("uav1").expect("valid");
+        let mut rec = Recorder::create(&path).expect("create");
+        for seq in 0..6 {
+            let p = pose("uav1", 30.52, 114.36, seq);
+            rec.write(
+                &keys.uav_key::<PoseEstimate>(&uav),
+                &encode(&p).expect("encode"),
+                1_000_000_000 * (10 + seq),
+            )
+            .expect("write");
+        }
+        rec.finish().expect("finish");
+        let whole = std::fs::read(&path).expect("bytes");
+        let all = read(&path).expect("whole").samples;
+        assert_eq!(all.len(), 6);
+        let cut = dir.path().join("cut.mcap");
+        let mut seen = std::collections::BTreeSet::new();
+        for at in 0..whole.len() {
+            std::fs::write(&cut, &whole[..at]).expect("cut");
+            let got = read(&cut).unwrap_or_else(|e| panic!("cut at byte {at}: {e}"));
+            // A prefix of the whole, in order, and the cut is said.
+            assert_eq!(got.samples, all[..got.samples.len()], "cut at byte {at}");
+            assert!(got.cut_short.is_some(), "cut at byte {at} not reported");
+            seen.insert(got.samples.len());
+        }
+        // Every whole message before a cut is kept: each count appears.
+        assert_eq!(seen, (0..=6).collect(), "message counts seen over all cuts");
+        // The player says where it ends with its first events.
+        let mut player = ReplayPlayer::of(read(&cut).expect("cut"), 0.0);
+        let events = player.advance(0.0);
+        assert!(
+            matches!(&events[0], NetEvent::Notice(n) if n.contains("ends early")),
+            "{events:?}"
+        );
+        assert_eq!(events.len(), 7);
     }
 
     #[test]
@@ -324,7 +434,7 @@ mod tests {
         rec.write_landmarks(&crate::test_support::towers(), 1)
             .expect("landmarks");
         rec.finish().expect("finish");
-        let samples = read(&path).expect("read");
+        let samples = read(&path).expect("read").samples;
         let towers = landmarks(&path, &samples)
             .expect("decodes")
             .expect("carried");
@@ -332,7 +442,11 @@ mod tests {
         assert!(samples[0].event().is_none(), "not a network event");
         let err = Recorder::create(&path).err().expect("exists");
         assert!(err.to_string().contains("session.mcap"), "{err}");
-        assert_eq!(read(&path).expect("intact").len(), 1, "left as it was");
+        assert_eq!(
+            read(&path).expect("intact").samples.len(),
+            1,
+            "left as it was"
+        );
     }
 
     #[test]

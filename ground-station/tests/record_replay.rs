@@ -118,7 +118,7 @@ fn recorded(dir: &std::path::Path) -> std::path::PathBuf {
 fn a_replay_pauses_and_seeks_and_its_towers_are_read_only() {
     let dir = tempfile::tempdir().expect("tempdir");
     let path = recorded(dir.path());
-    let samples = recording::read(&path).expect("read");
+    let samples = recording::read(&path).expect("read").samples;
     assert_eq!(
         recording::landmarks(&path, &samples).expect("towers"),
         Some(towers())

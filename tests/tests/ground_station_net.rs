@@ -189,7 +189,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         NetEvent::Notice(n) if n.starts_with("recorded") => Some(n),
         _ => None,
     })?;
-    let samples = recording::read(&mcap)?;
+    let samples = recording::read(&mcap)?.samples;
     assert_eq!(recording::landmarks(&mcap, &samples)?, Some(towers));
     assert!(
         notice.contains(&format!("recorded {} messages", samples.len())),
