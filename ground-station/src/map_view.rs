@@ -1,7 +1,8 @@
 //! The map: towers by type with their ids, each UAV's estimated track with its
 //! covariance ellipse, the simulator's true track, lines to the towers the
-//! current fix uses, follow mode and a distance measure. Zoom and pan are the
-//! plot's own (scroll, drag, double-click to reset). The background is the
+//! current fix uses, follow mode and a distance measure. The wheel zooms about
+//! the pointer (as maps do; Follow keeps the zoom the operator set), drag
+//! pans, double-click resets. The background is the
 //! plot's metric grid, or local tiles when the operator gave a tile folder.
 
 use egui::Color32;
@@ -33,6 +34,16 @@ pub struct MapState {
     follow_half_width_m: Option<f64>,
     /// Where the pointer is over the map (east, north), if it is.
     pub cursor: Option<[f64; 2]>,
+}
+
+/// The narrowest and widest followed views, half-widths in metres.
+const MIN_FOLLOW_HALF_WIDTH_M: f64 = 20.0;
+const MAX_FOLLOW_HALF_WIDTH_M: f64 = 50_000.0;
+
+/// How much a wheel movement of `scroll_px` (up is positive) zooms in: a
+/// factor above 1 zooms in, below 1 out; 100 px (about one notch) is 1.5x.
+pub fn wheel_zoom(scroll_px: f64) -> f64 {
+    (scroll_px / 100.0 * 1.5f64.ln()).exp()
 }
 
 /// The map's east/north point as latitude and longitude, for the readout under the pointer.
@@ -122,22 +133,36 @@ pub fn show(
         .x_axis_label("east (m)")
         .y_axis_label("north (m)")
         .allow_drag(!state.measuring)
+        // The wheel zooms, below; it does not pan.
+        .allow_scroll(false)
         .show(ui, |plot| {
+            let wheel = if plot.response().hovered() {
+                plot.ctx().input(|i| i.smooth_scroll_delta.y)
+            } else {
+                0.0
+            };
+            let zoom = wheel_zoom(f64::from(wheel));
             if let Some(layer) = tiles {
                 layer.draw(plot);
             }
             draw_towers(plot, towers);
             draw_fleet(plot, fleet, towers, selected, now_s);
             if let Some(center) = followed {
-                let half = *state
+                let half = state
                     .follow_half_width_m
                     .get_or_insert_with(|| 0.5 * plot.plot_bounds().width().max(200.0));
+                // Following, the wheel sets the followed view's width.
+                *half = (*half / zoom).clamp(MIN_FOLLOW_HALF_WIDTH_M, MAX_FOLLOW_HALF_WIDTH_M);
+                let half = *half;
                 plot.set_plot_bounds(PlotBounds::from_min_max(
                     [center[0] - half, center[1] - half],
                     [center[0] + half, center[1] + half],
                 ));
             } else {
                 state.follow_half_width_m = None;
+                if zoom != 1.0 {
+                    plot.zoom_bounds_around_hovered(egui::Vec2::splat(zoom as f32));
+                }
             }
             if !state.measure.is_empty() {
                 plot.line(
@@ -306,6 +331,13 @@ fn draw_fleet(
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_wheel_notch_zooms_by_half_and_back() {
+        assert!((wheel_zoom(100.0) - 1.5).abs() < 1e-12);
+        assert!((wheel_zoom(100.0) * wheel_zoom(-100.0) - 1.0).abs() < 1e-12);
+        assert_eq!(wheel_zoom(0.0), 1.0);
+    }
 
     #[test]
     fn the_cursor_reads_as_the_latitude_and_longitude_under_it() {
