@@ -40,6 +40,9 @@ pub struct DaemonConfig {
     pub detector: String,
     /// Preview pictures at most this often; `None`: none.
     pub preview_every: Option<Duration>,
+    /// This run of the edge (the shell draws it at start): its track
+    /// numbers and the corrections meant for them belong to it.
+    pub session: u64,
 }
 
 /// One frame after the detector: its boxes, and what the source knew of it.
@@ -236,8 +239,12 @@ impl DaemonCore {
         if let Some(link) = self.autopilot.as_mut() {
             link.handle_estimate(now, for_autopilot, self.state);
         }
-        self.outputs
-            .push_back(Output::Tracks(track_report(&self.config.uav, &output, map)));
+        self.outputs.push_back(Output::Tracks(track_report(
+            &self.config.uav,
+            self.config.session,
+            &output,
+            map,
+        )));
         self.outputs.push_back(Output::Detections(DetectionReport {
             uav: self.config.uav.clone(),
             time_s: frame.time_s,
@@ -270,7 +277,13 @@ impl DaemonCore {
     pub fn handle_command(&mut self, now: Instant, command: Command) {
         match command {
             Command::Correct(c) => {
-                let result = if c.release {
+                let result = if c.session.is_some_and(|s| s != self.config.session) {
+                    Err(format!(
+                        "track {} was picked in an earlier run of this edge; track numbers \
+                         start again with each run: pick the track again",
+                        c.track_id
+                    ))
+                } else if c.release {
                     self.pipeline.release(c.track_id)
                 } else {
                     self.pipeline.pin(c.track_id, c.tower_id.as_deref())

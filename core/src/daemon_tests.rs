@@ -27,6 +27,7 @@ fn core(start: Instant, preview_every: Option<Duration>) -> DaemonCore {
             method: PoseMethod::RaysEkf,
             detector: "oracle".into(),
             preview_every,
+            session: 41,
         },
         pipeline,
         start,
@@ -120,6 +121,7 @@ fn a_ten_second_camera_stall_still_beats_acks_and_takes_landmarks() {
             tower_id: Some("T1".into()),
             issued_by: "operator".into(),
             release: false,
+            session: None,
         }),
     );
     let acks: Vec<_> = drain(&mut core)
@@ -132,6 +134,29 @@ fn a_ten_second_camera_stall_still_beats_acks_and_takes_landmarks() {
     assert_eq!(acks.len(), 1, "the ack goes out at once, with no frame");
     assert_eq!(acks[0].request_id, 7);
     assert!(!acks[0].accepted, "no track 99 exists: {:?}", acks[0]);
+    // A correction picked in another run of the edge is refused, saying why.
+    core.handle_command(
+        stalled_at + Duration::from_secs(3),
+        Command::Correct(IdCorrection {
+            uav: NodeId::new("uav1").expect("an id"),
+            request_id: 8,
+            track_id: 1,
+            tower_id: Some("T1".into()),
+            issued_by: "operator".into(),
+            release: false,
+            session: Some(40),
+        }),
+    );
+    let refused: Vec<_> = drain(&mut core)
+        .into_iter()
+        .filter_map(|o| match o {
+            Output::Ack(a) => Some(a),
+            _ => None,
+        })
+        .collect();
+    assert!(!refused[0].accepted);
+    let reason = refused[0].reason.as_deref().unwrap_or_default();
+    assert!(reason.contains("earlier run"), "{reason}");
     core.handle_command(
         stalled_at + Duration::from_secs(4),
         Command::ReplaceMap(map(vec![tower("T3", 200.0, 50.0, 35.0)])),

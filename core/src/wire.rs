@@ -54,9 +54,15 @@ pub fn pose_estimate(
     }
 }
 
-pub fn track_report(uav: &NodeId, out: &FrameOutput, map: &LandmarkMap) -> TrackReport {
+pub fn track_report(
+    uav: &NodeId,
+    session: u64,
+    out: &FrameOutput,
+    map: &LandmarkMap,
+) -> TrackReport {
     TrackReport {
         uav: uav.clone(),
+        session,
         time_s: out.time_s,
         seq: out.seq,
         tracks: out

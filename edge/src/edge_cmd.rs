@@ -92,6 +92,7 @@ pub async fn run_edge(
             detector: detector_name.clone(),
             preview_every: (config.output.preview_hz > 0.0)
                 .then(|| Duration::from_secs_f64(1.0 / config.output.preview_hz)),
+            session: run_session(),
         },
         pipeline,
         Instant::now(),
@@ -477,6 +478,14 @@ fn warn_drops(config: &EdgeConfig, summary: &RunSummary) {
     if let Some(share) = dropped_share(summary.dropped, summary.record.frames) {
         println!("warning: {}", drop_advice(share, config.source.pacing()));
     }
+}
+
+/// This run's number: its start in nanoseconds since the Unix epoch, so a
+/// restarted edge (a new run) never takes a correction meant for the last.
+fn run_session() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(1, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
 }
 
 /// SIGINT or SIGTERM: stop taking frames; what is queued is finished and published.

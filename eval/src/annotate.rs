@@ -75,6 +75,7 @@ mod tests {
                 pinned: false,
                 confidence: None,
             }],
+            session: 0,
         };
         annotate(&mut image, &tracks, None);
         assert_eq!(image.get_pixel(50, 80).0, [40, 220, 80], "left edge");

@@ -58,6 +58,7 @@ fn bench(c: &mut Criterion) {
                         confidence: Some(0.9),
                     })
                     .collect(),
+                session: 0,
             }));
         }
     };

@@ -364,13 +364,20 @@ impl GsApp {
             Some(CameraAction::Send {
                 uav,
                 track_id,
+                session,
                 tower,
                 previous,
-            }) => Some(
-                self.fleet
+            }) => {
+                let mut message = self
+                    .fleet
                     .corrections
-                    .issue(&uav, track_id, tower, previous, &operator, now_s),
-            ),
+                    .issue(&uav, track_id, tower, previous, &operator, now_s);
+                message.session = (session != 0).then_some(session);
+                if let Some(last) = self.fleet.corrections.sent.last_mut() {
+                    last.message.session = message.session;
+                }
+                Some(message)
+            }
             Some(CameraAction::Undo(request_id)) => {
                 self.fleet.corrections.undo(request_id, &operator, now_s)
             }
@@ -629,6 +636,7 @@ mod tests {
                 pinned: false,
                 confidence: Some(0.3),
             }],
+            session: 0,
         }))
         .expect("send");
         let jpeg = crate::test_support::jpeg(64, 36, [90, 120, 160]);

@@ -15,6 +15,8 @@ use crate::map_view::MapTower;
 pub struct Picking {
     pub uav: NodeId,
     pub track_id: u64,
+    /// The edge run the track's number belongs to (0: the edge did not say).
+    pub session: u64,
     /// The track's binding when it was clicked.
     pub current: Option<String>,
     /// Whether that binding was an operator's pin.
@@ -36,6 +38,8 @@ pub enum CameraAction {
     Send {
         uav: NodeId,
         track_id: u64,
+        /// The edge run of the picked track; 0: unknown.
+        session: u64,
         tower: Option<String>,
         previous: Before,
     },
@@ -100,11 +104,9 @@ pub fn show(
             let live = link.is_live();
             let rect = frame(ui, state, preview, live);
             let scale = f64::from(rect.width()) / f64::from(preview.meta.frame_width.max(1));
-            let tracks: Vec<&Track> = view
-                .tracks_near(preview.meta.seq)
-                .iter()
-                .flat_map(|t| &t.tracks)
-                .collect();
+            let shown = view.tracks_near(preview.meta.seq);
+            let session = shown.map_or(0, |t| t.session);
+            let tracks: Vec<&Track> = shown.iter().flat_map(|t| &t.tracks).collect();
             let boxes: Vec<Rect> = tracks.iter().map(|t| screen_box(t, rect, scale)).collect();
             let font = egui::FontId::proportional(12.0);
             let sizes: Vec<egui::Vec2> = tracks
@@ -131,6 +133,7 @@ pub fn show(
                     state.picking = Some(Picking {
                         uav: uav.clone(),
                         track_id: track.track_id,
+                        session,
                         current: track.tower_id.clone(),
                         current_pinned: track.pinned,
                         search: String::new(),
@@ -159,6 +162,7 @@ pub fn show(
             action = Some(CameraAction::Send {
                 uav: pick.uav.clone(),
                 track_id: pick.track_id,
+                session: pick.session,
                 tower,
                 previous: Before {
                     tower: pick.current.clone(),
@@ -482,6 +486,13 @@ fn history(
                 }
                 CorrectionState::Rejected(reason) => {
                     ui.colored_label(Color32::RED, format!("rejected: {reason}"));
+                }
+                CorrectionState::RunEnded => {
+                    ui.colored_label(
+                        Color32::ORANGE,
+                        "not applied: the edge restarted and its track numbers \
+                         started again; pick the track again",
+                    );
                 }
             }
         });

@@ -18,6 +18,9 @@ pub enum CorrectionState {
     NoAnswer,
     /// The operator stopped waiting for it (it was resent, or given up).
     Cancelled,
+    /// Unanswered when its edge restarted: the track number it names now
+    /// means another track, so it is neither resent nor applied.
+    RunEnded,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -79,6 +82,7 @@ impl Corrections {
             tower_id,
             issued_by: issued_by.to_owned(),
             release: false,
+            session: None,
         };
         self.next_request_id += 1;
         self.sent.push(SentCorrection {
@@ -118,11 +122,14 @@ impl Corrections {
             pinned: true,
         };
         let restore = if release { None } else { restore };
+        let session = entry.message.session;
         let mut message = self.issue(&uav, track, restore, before, issued_by, now_s);
         message.release = release;
+        message.session = session;
         if let Some(last) = self.sent.last_mut() {
             last.undone = true; // An undo is not itself undone.
             last.message.release = release;
+            last.message.session = session;
         }
         Some(message)
     }
@@ -158,13 +165,32 @@ impl Corrections {
             tower: entry.previous.clone(),
             pinned: entry.previous_pinned,
         };
+        let session = entry.message.session;
         let mut message = self.issue(&uav, track, tower, before, issued_by, now_s);
         message.release = release;
+        message.session = session;
         if let Some(last) = self.sent.last_mut() {
             last.undone = undone;
             last.message.release = release;
+            last.message.session = session;
         }
         Some(message)
+    }
+
+    /// `uav`'s edge now runs as `session`: its corrections still waiting
+    /// for an answer from an earlier run end, never to be resent.
+    pub fn run_changed(&mut self, uav: &NodeId, session: u64) {
+        for c in &mut self.sent {
+            if c.message.uav == *uav
+                && c.message.session.is_some_and(|s| s != session)
+                && matches!(
+                    c.state,
+                    CorrectionState::Pending | CorrectionState::NoAnswer
+                )
+            {
+                c.state = CorrectionState::RunEnded;
+            }
+        }
     }
 
     /// Stops waiting for a correction's answer; true if it was waiting.

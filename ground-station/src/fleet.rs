@@ -225,6 +225,9 @@ impl Fleet {
             }
             NetEvent::Tracks(t) => {
                 let uav = t.uav.clone();
+                if t.session != 0 {
+                    self.corrections.run_changed(&uav, t.session);
+                }
                 let recent = &mut self.uavs.entry(uav).or_default().recent_tracks;
                 if recent.len() == RECENT_TRACKS {
                     recent.pop_front();

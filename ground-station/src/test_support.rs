@@ -97,6 +97,7 @@ pub fn frame_events(uav: &str, seq: u64) -> Vec<NetEvent> {
             pinned: false,
             confidence: Some(0.9),
         }],
+        session: 1,
     });
     let preview = Preview {
         uav: node.clone(),

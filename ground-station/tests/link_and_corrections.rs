@@ -222,6 +222,38 @@ fn a_correction_to_a_silent_uav_times_out_and_can_be_resent_or_cancelled() {
 }
 
 #[test]
+fn a_correction_is_bound_to_the_edge_run_it_was_picked_in() {
+    let (tx, mut commands, mut harness, now) = live();
+    let sent = send_b1(&mut harness, &mut commands);
+    assert_eq!(
+        sent.session,
+        Some(1),
+        "the run of the tracks the operator saw"
+    );
+    now.set(6.0);
+    harness.run();
+    harness.get_by_label("no answer after 5 s");
+    // The edge restarts: its tracks come from run 2, where T7 is another tower.
+    for e in towernav_ground_station::test_support::frame_events("uav1", 1) {
+        let e = match e {
+            NetEvent::Tracks(mut t) => {
+                t.session = 2;
+                NetEvent::Tracks(t)
+            }
+            other => other,
+        };
+        tx.send(e).expect("send");
+    }
+    harness.run();
+    harness.get_by_label_contains("the edge restarted and its track numbers started again");
+    assert!(
+        harness.query_by_label("Resend").is_none(),
+        "a correction of another run is not resent"
+    );
+    assert!(commands.try_recv().is_err(), "nothing was sent");
+}
+
+#[test]
 fn picking_a_tower_bound_to_another_track_says_so_before_sending() {
     use towernav_geometry::PixelBox;
     use towernav_protocol::{TowerType, Track, TrackReport};
@@ -240,6 +272,7 @@ fn picking_a_tower_bound_to_another_track_says_so_before_sending() {
         time_s: 5.0 / 30.0,
         seq: 5,
         tracks: vec![track(7, 600.0, "A1"), track(9, 900.0, "B1")],
+        session: 0,
     }))
     .expect("send");
     harness.run();

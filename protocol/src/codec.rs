@@ -179,6 +179,7 @@ mod tests {
                 pinned: false,
                 confidence: Some(0.75),
             }],
+            session: 0,
         };
         assert_eq!(
             decode::<TrackReport>(&encode(&report).expect("encode")).expect("decode"),

@@ -73,6 +73,11 @@ pub struct TrackReport {
     pub time_s: f64,
     pub seq: u64,
     pub tracks: Vec<Track>,
+    /// The edge's run these track numbers belong to: numbers start again
+    /// with each run, so a correction names the run it was made in. 0 from
+    /// an edge that does not say.
+    #[serde(default)]
+    pub session: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -142,6 +147,10 @@ pub struct IdCorrection {
     /// edge had bound itself). Absent in older senders' messages: false.
     #[serde(default)]
     pub release: bool,
+    /// The edge run (`TrackReport::session`) whose track the operator
+    /// picked; an edge in another run refuses the correction. Absent: any run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub session: Option<u64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

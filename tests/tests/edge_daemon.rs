@@ -248,6 +248,7 @@ async fn a_correction_is_applied_acknowledged_and_kept() -> anyhow::Result<()> {
             tower_id: Some(tower.to_string()),
             issued_by: "test".into(),
             release: false,
+            session: None,
         };
         let key = keys.uav_key::<IdCorrection>(&uav);
         let gs = gs.clone();

@@ -77,6 +77,7 @@ fn correction(uav: &NodeId, request_id: u64, by: &str) -> IdCorrection {
         tower_id: Some("B4".into()),
         issued_by: by.into(),
         release: false,
+        session: None,
     }
 }
 

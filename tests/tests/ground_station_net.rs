@@ -175,6 +175,7 @@ async fn poses_liveliness_rejections_corrections_and_a_recording() -> anyhow::Re
         tower_id: Some("B1".into()),
         issued_by: "test".into(),
         release: false,
+        session: None,
     };
     command(&link, NetCommand::Correct(correction.clone()))?;
     let received = tokio::time::timeout(Duration::from_secs(5), edge.next_correction()).await?;
