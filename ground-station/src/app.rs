@@ -9,8 +9,8 @@ use std::path::PathBuf;
 
 use towernav_geometry::{Datum, Geodetic};
 use towernav_landmark_db::{
-    Author, DbError, Expect, Format, HistoryEntry, ImportOptions, LandmarkDb, OsmMapping,
-    export_csv, export_geojson, export_osm_xml, import_file,
+    Author, CheckKind, DbError, Expect, Format, HistoryEntry, ImportOptions, LandmarkDb,
+    OsmMapping, export_csv, export_geojson, export_osm_xml, import_file, likely_mistakes,
 };
 use towernav_protocol::{LandmarkRecord, NodeId};
 
@@ -20,7 +20,7 @@ use crate::events::NetEvent;
 use crate::fleet::Fleet;
 use crate::fleet_panel;
 use crate::label_review_view::{self, ReviewView};
-use crate::landmark_editor::{self, EditorAction, EditorState, FileFormat};
+use crate::landmark_editor::{self, EditorAction, EditorState, FileFormat, PendingImport};
 use crate::map_view::{self, MapState, MapTower};
 use crate::net::{NetCommand, NetLink};
 use crate::recording::ReplayPlayer;
@@ -424,16 +424,36 @@ impl GsApp {
                 .upsert_expecting(&record, Expect::Absent, &author)
                 .map(|rev| format!("restored {} (revision {rev})", record.id))
                 .map_err(|e| format!("{} was not restored: {e}", record.id)),
-            EditorAction::Import(path, format) => {
+            EditorAction::Import(path, file_format, confirmed) => {
                 let options = ImportOptions {
                     osm: OsmMapping::towernav(),
                     ..ImportOptions::default()
                 };
-                let format = match format {
+                let format = match file_format {
                     FileFormat::Csv => Format::Csv,
                     FileFormat::GeoJson => Format::GeoJson,
                     FileFormat::Osm => Format::OsmXml,
                 };
+                // The form's checks, before anything is written: a tower far
+                // from every other or on top of another waits for the operator.
+                let doubtful = if confirmed {
+                    Vec::new()
+                } else {
+                    doubtful_towers(&path, format, &options, &self.records)
+                };
+                if !doubtful.is_empty() {
+                    self.editor.pending_import = Some(PendingImport {
+                        path: path.clone(),
+                        format: file_format,
+                        warnings: doubtful,
+                    });
+                    self.editor.message = Some((
+                        false,
+                        format!("{} held back: check the towers listed", path.display()),
+                    ));
+                    return;
+                }
+                self.editor.pending_import = None;
                 import_file(&mut self.db, &path, format, &options, &author)
                     .map(|r| {
                         let mut text = format!(
@@ -481,6 +501,25 @@ impl GsApp {
             path.display()
         ))
     }
+}
+
+/// The towers of an import file that the form would ask about: far from
+/// every other, or on top of another. A file that does not parse gives none
+/// here; the import itself then says why.
+fn doubtful_towers(
+    path: &std::path::Path,
+    format: Format,
+    options: &ImportOptions,
+    stored: &[towernav_protocol::LandmarkRecord],
+) -> Vec<String> {
+    let Ok(parsed) = towernav_landmark_db::import::parse_file(path, format, &options.osm) else {
+        return Vec::new();
+    };
+    likely_mistakes(&parsed.records, stored, options)
+        .into_iter()
+        .filter(|w| matches!(w.kind, CheckKind::Far | CheckKind::Spacing))
+        .map(|w| w.to_string())
+        .collect()
 }
 
 #[cfg(test)]
@@ -728,7 +767,7 @@ mod tests {
             );
             app.apply_editor(EditorAction::Delete("A1".into()));
             assert_eq!(app.records.len(), 1);
-            app.apply_editor(EditorAction::Import(path, format));
+            app.apply_editor(EditorAction::Import(path, format, false));
             let message = app.editor.message.clone().expect("message");
             assert!(
                 message.0 && message.1.contains("imported 2 towers"),
@@ -740,9 +779,39 @@ mod tests {
         let (_tx, _commands, mut app) = app();
         let junk = dir.path().join("junk.csv");
         std::fs::write(&junk, "id,tower_type\nX1,Q\n").expect("write");
-        app.apply_editor(EditorAction::Import(junk, FileFormat::Csv));
+        app.apply_editor(EditorAction::Import(junk, FileFormat::Csv, false));
         let message = app.editor.message.clone().expect("message");
         assert!(!message.0 && message.1.contains("junk.csv"), "{message:?}");
         assert_eq!(app.records.len(), 2, "nothing written");
+    }
+
+    #[test]
+    fn an_import_with_a_tower_far_from_every_other_waits_for_the_operator() {
+        use crate::landmark_editor::{EditorAction, FileFormat};
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (_tx, _commands, mut app) = app();
+        assert_eq!(app.records.len(), 2);
+        // One latitude with a wrong digit: 26 degrees north of the line.
+        let file = dir.path().join("survey.csv");
+        std::fs::write(
+            &file,
+            "id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m\n\
+             C1,A,30.5231,114.3612,24.5,33\n\
+             C2,A,56.5241,114.3622,24.5,33\n",
+        )
+        .expect("write");
+        app.apply_editor(EditorAction::Import(file.clone(), FileFormat::Csv, false));
+        assert_eq!(app.records.len(), 2, "held back: nothing written");
+        let pending = app.editor.pending_import.clone().expect("held back");
+        assert_eq!(pending.warnings.len(), 1, "{:?}", pending.warnings);
+        assert!(
+            pending.warnings[0].starts_with("C2: stands"),
+            "{:?}",
+            pending.warnings
+        );
+        // The operator says the file is right.
+        app.apply_editor(EditorAction::Import(file, FileFormat::Csv, true));
+        assert_eq!(app.records.len(), 4);
+        assert!(app.editor.pending_import.is_none());
     }
 }

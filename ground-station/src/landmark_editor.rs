@@ -42,8 +42,18 @@ pub enum EditorAction {
     Delete(String),
     /// Put a deleted tower back as it was (its id must still be free).
     Restore(Box<LandmarkRecord>),
-    Import(std::path::PathBuf, FileFormat),
+    /// Import a file; `true`: the operator saw its warnings and imports anyway.
+    Import(std::path::PathBuf, FileFormat, bool),
     Export(std::path::PathBuf, FileFormat),
+}
+
+/// An import held back until the operator confirms it: towers in it look
+/// wrong (far from every other, or on top of another), as the form would ask.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PendingImport {
+    pub path: std::path::PathBuf,
+    pub format: FileFormat,
+    pub warnings: Vec<String>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -175,6 +185,8 @@ pub struct EditorState {
     pub io_path: String,
     pub io_format: FileFormat,
     browser: Option<FileBrowser>,
+    /// An import waiting for "Import anyway".
+    pub pending_import: Option<PendingImport>,
 }
 
 impl Default for EditorState {
@@ -192,6 +204,7 @@ impl Default for EditorState {
             io_path: String::new(),
             io_format: FileFormat::Csv,
             browser: None,
+            pending_import: None,
         }
     }
 }
@@ -687,7 +700,7 @@ fn files(ui: &mut egui::Ui, state: &mut EditorState) -> Option<EditorAction> {
             .add_enabled(has_path, egui::Button::new("Import"))
             .clicked()
         {
-            action = Some(EditorAction::Import(path.clone(), state.io_format));
+            action = Some(EditorAction::Import(path.clone(), state.io_format, false));
         }
         if ui
             .add_enabled(has_path, egui::Button::new("Export"))
@@ -696,6 +709,32 @@ fn files(ui: &mut egui::Ui, state: &mut EditorState) -> Option<EditorAction> {
             action = Some(EditorAction::Export(path, state.io_format));
         }
     });
+    if let Some(pending) = state.pending_import.clone() {
+        ui.colored_label(
+            egui::Color32::YELLOW,
+            format!(
+                "{} was not imported: {} tower(s) look wrong",
+                pending.path.display(),
+                pending.warnings.len()
+            ),
+        );
+        for w in pending.warnings.iter().take(5) {
+            ui.label(format!("  {w}"));
+        }
+        ui.horizontal(|ui| {
+            if ui.button("Import anyway").clicked() {
+                action = Some(EditorAction::Import(
+                    pending.path.clone(),
+                    pending.format,
+                    true,
+                ));
+                state.pending_import = None;
+            }
+            if ui.button("Cancel import").clicked() {
+                state.pending_import = None;
+            }
+        });
+    }
     if let Some(browser) = state.browser.as_mut() {
         match browser.show(ui.ctx()) {
             Some(Some(path)) => {

@@ -30,6 +30,10 @@ pub struct ImportOptions {
     pub skip_invalid: bool,
     /// Towers closer than this to another are flagged.
     pub min_spacing_m: f64,
+    /// Towers farther than this from every other are flagged: a line's
+    /// towers stand 0.2-0.5 km apart, and a dropped digit puts one hundreds
+    /// of kilometres off.
+    pub max_isolation_m: f64,
     /// Plausible tower height range, metres.
     pub height_range_m: (f64, f64),
     /// How OSM tags become tower types and ground elevations.
@@ -41,6 +45,7 @@ impl Default for ImportOptions {
         Self {
             skip_invalid: false,
             min_spacing_m: 30.0,
+            max_isolation_m: 20_000.0,
             height_range_m: (15.0, 80.0),
             osm: OsmMapping::default(),
         }
@@ -61,6 +66,7 @@ pub enum CheckKind {
     Replaces,
     Height,
     Spacing,
+    Far,
 }
 
 impl std::fmt::Display for CheckKind {
@@ -69,6 +75,7 @@ impl std::fmt::Display for CheckKind {
             Self::Replaces => "towers replacing one stored under their id",
             Self::Height => "heights outside their type's range",
             Self::Spacing => "towers closer than the minimum spacing to another",
+            Self::Far => "towers far from every other (is the position right?)",
         })
     }
 }
@@ -211,18 +218,28 @@ pub fn likely_mistakes(
         };
         // The nearest other tower only: one line per tower, and a logarithmic
         // search even when a file puts every tower at one spot.
-        if options.min_spacing_m.is_finite()
-            && let Some((i, d)) = index.nearest(&foot).find(|(i, _)| after[*i].id != r.id)
-            && d < options.min_spacing_m
-        {
-            warnings.push(warn(
-                &r.id,
-                CheckKind::Spacing,
-                format!(
-                    "stands {d:.1} m from {} (closer than {} m)",
-                    after[i].id, options.min_spacing_m
-                ),
-            ));
+        let nearest = index.nearest(&foot).find(|(i, _)| after[*i].id != r.id);
+        if let Some((i, d)) = nearest {
+            if d < options.min_spacing_m {
+                warnings.push(warn(
+                    &r.id,
+                    CheckKind::Spacing,
+                    format!(
+                        "stands {d:.1} m from {} (closer than {} m)",
+                        after[i].id, options.min_spacing_m
+                    ),
+                ));
+            } else if d > options.max_isolation_m {
+                warnings.push(warn(
+                    &r.id,
+                    CheckKind::Far,
+                    format!(
+                        "stands {:.0} km from the nearest tower ({}); is the position right?",
+                        d / 1000.0,
+                        after[i].id
+                    ),
+                ));
+            }
         }
     }
     warnings
@@ -232,6 +249,21 @@ pub fn likely_mistakes(
 mod tests {
     use super::*;
     use crate::fixtures::tower_at as tower;
+
+    #[test]
+    fn flags_a_tower_far_from_every_other() {
+        let existing = [tower("B1", 30.5, 35.0), tower("B2", 30.503, 35.0)];
+        // A latitude with a wrong digit: 26 degrees north, about 2900 km (as the chord).
+        let incoming = [tower("B3", 30.506, 35.0), tower("B4", 56.509, 35.0)];
+        let w = likely_mistakes(&incoming, &existing, &ImportOptions::default());
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert_eq!((w[0].id.as_str(), w[0].kind), ("B4", CheckKind::Far));
+        assert!(
+            w[0].message.contains("2864 km") && w[0].message.contains("B3"),
+            "{}",
+            w[0].message
+        );
+    }
 
     #[test]
     fn flags_near_twins_replacements_and_odd_heights() {
