@@ -266,12 +266,24 @@ impl GsApp {
                 });
             }
             Tab::Landmarks => {
+                if self.replay.is_some() {
+                    ui.colored_label(
+                        egui::Color32::YELLOW,
+                        "REPLAY: these are the recording's towers, read-only; nothing here \
+                         reaches an edge. Export still works.",
+                    );
+                }
                 let action = landmark_editor::show(ui, &mut self.editor, &self.records);
                 // A replay's towers are the recording's: looked at, not edited.
-                if let Some(action) = action
-                    .filter(|a| self.replay.is_none() || matches!(a, EditorAction::Export(..)))
-                {
-                    self.apply_editor(action);
+                match action {
+                    Some(a) if self.replay.is_none() || matches!(a, EditorAction::Export(..)) => {
+                        self.apply_editor(a);
+                    }
+                    Some(_) => {
+                        self.editor.message =
+                            Some((false, "not saved: a replay's towers are read-only".into()));
+                    }
+                    None => {}
                 }
             }
             Tab::History => {

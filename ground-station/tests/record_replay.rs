@@ -153,9 +153,10 @@ fn a_replay_pauses_and_seeks_and_its_towers_are_read_only() {
     harness.run();
     assert_eq!(seq(&harness), Some(5));
 
-    // The towers are the recording's, and cannot be edited here.
+    // The towers are the recording's, and cannot be edited here: it says so.
     harness.get_by_label("Landmarks").click();
     harness.run();
+    harness.get_by_label_contains("REPLAY: these are the recording's towers, read-only");
     harness.get_by_label("A1").click();
     harness.run();
     harness.get_by_label("Delete...").click();
@@ -166,4 +167,5 @@ fn a_replay_pauses_and_seeks_and_its_towers_are_read_only() {
         harness.state().db().get("A1").expect("db").is_some(),
         "a replay edits nothing"
     );
+    harness.get_by_label("not saved: a replay's towers are read-only");
 }
