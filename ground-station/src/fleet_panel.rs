@@ -198,7 +198,7 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, nav: Nav) {
             .map(|v| format!(", {v:.1} m/s"))
             .unwrap_or_default();
         let text = format!(
-            "{:.6}, {:.6}  ±{sigma:.1} m\nheight {:.1} m above the WGS84 ellipsoid\nheading {heading:.0} deg{speed}",
+            "{:.6}, {:.6}  ±{sigma:.1} m (1-sigma)\nheight {:.1} m above the WGS84 ellipsoid\nheading {heading:.0} deg{speed}",
             p.lat_deg, p.lon_deg, p.alt_m
         );
         if current {

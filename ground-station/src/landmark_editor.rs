@@ -652,7 +652,7 @@ fn delete_dialog(
             record
                 .line_name
                 .as_deref()
-                .map(|l| format!(" on line {l}"))
+                .map(|l| format!(" (line: {l})"))
                 .unwrap_or_default()
         ));
         ui.label("The removal goes live to every edge at once. It can be undone here.");
