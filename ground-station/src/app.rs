@@ -481,7 +481,17 @@ impl GsApp {
                     })
                     .map_err(|e| e.to_string())
             }
-            EditorAction::Export(path, format) => self.export(&path, format),
+            EditorAction::Export(path, format, false) if path.exists() => {
+                self.editor.pending_overwrite = Some((path.clone(), format));
+                Err(format!(
+                    "not exported: {} exists; Overwrite replaces it",
+                    path.display()
+                ))
+            }
+            EditorAction::Export(path, format, _) => {
+                self.editor.pending_overwrite = None;
+                self.export(&path, format)
+            }
         };
         if let Err(e) = self.reload_landmarks() {
             self.fleet
@@ -771,7 +781,21 @@ mod tests {
             let path = dir
                 .path()
                 .join(format!("towers.{}", format.label().replace(' ', "")));
-            app.apply_editor(EditorAction::Export(path.clone(), format));
+            app.apply_editor(EditorAction::Export(path.clone(), format, false));
+            assert_eq!(
+                app.editor.message.as_ref().map(|m| m.0),
+                Some(true),
+                "{format:?}"
+            );
+            // A second export to the same file asks first, then overwrites when told.
+            app.apply_editor(EditorAction::Export(path.clone(), format, false));
+            assert_eq!(
+                app.editor.message.as_ref().map(|m| m.0),
+                Some(false),
+                "{format:?}: an existing file is not overwritten unasked"
+            );
+            assert!(app.editor.pending_overwrite.is_some());
+            app.apply_editor(EditorAction::Export(path.clone(), format, true));
             assert_eq!(
                 app.editor.message.as_ref().map(|m| m.0),
                 Some(true),

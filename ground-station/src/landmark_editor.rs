@@ -44,7 +44,8 @@ pub enum EditorAction {
     Restore(Box<LandmarkRecord>),
     /// Import a file; `true`: the operator saw its warnings and imports anyway.
     Import(std::path::PathBuf, FileFormat, bool),
-    Export(std::path::PathBuf, FileFormat),
+    /// Export to a file; `true`: replace it if it exists (the operator said so).
+    Export(std::path::PathBuf, FileFormat, bool),
 }
 
 /// An import held back until the operator confirms it: towers in it look
@@ -187,6 +188,8 @@ pub struct EditorState {
     browser: Option<FileBrowser>,
     /// An import waiting for "Import anyway".
     pub pending_import: Option<PendingImport>,
+    /// An export onto an existing file, waiting for "Overwrite".
+    pub pending_overwrite: Option<(std::path::PathBuf, FileFormat)>,
 }
 
 impl Default for EditorState {
@@ -205,6 +208,7 @@ impl Default for EditorState {
             io_format: FileFormat::Csv,
             browser: None,
             pending_import: None,
+            pending_overwrite: None,
         }
     }
 }
@@ -706,9 +710,21 @@ fn files(ui: &mut egui::Ui, state: &mut EditorState) -> Option<EditorAction> {
             .add_enabled(has_path, egui::Button::new("Export"))
             .clicked()
         {
-            action = Some(EditorAction::Export(path, state.io_format));
+            action = Some(EditorAction::Export(path, state.io_format, false));
         }
     });
+    if let Some((path, format)) = state.pending_overwrite.clone() {
+        ui.horizontal(|ui| {
+            ui.colored_label(egui::Color32::YELLOW, format!("{} exists.", path.display()));
+            if ui.button("Overwrite").clicked() {
+                action = Some(EditorAction::Export(path.clone(), format, true));
+                state.pending_overwrite = None;
+            }
+            if ui.button("Keep it").clicked() {
+                state.pending_overwrite = None;
+            }
+        });
+    }
     if let Some(pending) = state.pending_import.clone() {
         ui.colored_label(
             egui::Color32::YELLOW,
