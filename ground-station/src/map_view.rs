@@ -324,13 +324,43 @@ fn draw_fleet(
                 .radius(7.0)
                 .color(marker),
         );
+        // Where it points: a line along the last pose's heading.
+        if let Some(p) = &view.last_pose {
+            plot.line(
+                Line::new(uav.as_str(), heading_line(last, p.yaw_rad))
+                    .color(marker)
+                    .width(2.0),
+            );
+        }
     }
+}
+
+/// Length of the heading line on the map, metres.
+const HEADING_LINE_M: f64 = 60.0;
+
+/// The heading line from `at`, for a yaw counter-clockwise from east (ENU).
+pub fn heading_line(at: [f64; 2], yaw_rad: f64) -> Vec<[f64; 2]> {
+    vec![
+        at,
+        [
+            at[0] + HEADING_LINE_M * yaw_rad.cos(),
+            at[1] + HEADING_LINE_M * yaw_rad.sin(),
+        ],
+    ]
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn the_heading_line_points_where_the_uav_heads() {
+        // Yaw 90 degrees counter-clockwise from east: north.
+        let line = heading_line([10.0, 20.0], std::f64::consts::FRAC_PI_2);
+        assert!((line[1][0] - 10.0).abs() < 1e-9);
+        assert!((line[1][1] - (20.0 + HEADING_LINE_M)).abs() < 1e-9);
+    }
 
     #[test]
     fn a_wheel_notch_zooms_by_half_and_back() {
