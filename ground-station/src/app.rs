@@ -379,17 +379,15 @@ impl GsApp {
                 session,
                 tower,
                 previous,
-            }) => {
-                let mut message = self
-                    .fleet
-                    .corrections
-                    .issue(&uav, track_id, tower, previous, &operator, now_s);
-                message.session = (session != 0).then_some(session);
-                if let Some(last) = self.fleet.corrections.sent.last_mut() {
-                    last.message.session = message.session;
-                }
-                Some(message)
-            }
+            }) => Some(self.fleet.corrections.issue(
+                &uav,
+                track_id,
+                (session != 0).then_some(session),
+                tower,
+                previous,
+                &operator,
+                now_s,
+            )),
             Some(CameraAction::Undo(request_id)) => {
                 self.fleet.corrections.undo(request_id, &operator, now_s)
             }

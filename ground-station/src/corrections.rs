@@ -66,10 +66,13 @@ impl Corrections {
     }
 
     /// Records a correction as pending and returns the message to publish.
+    /// `session`: the edge run the track was picked in (`None`: unknown).
+    #[allow(clippy::too_many_arguments)]
     pub fn issue(
         &mut self,
         uav: &NodeId,
         track_id: u64,
+        session: Option<u64>,
         tower_id: Option<String>,
         before: Before,
         issued_by: &str,
@@ -82,7 +85,7 @@ impl Corrections {
             tower_id,
             issued_by: issued_by.to_owned(),
             release: false,
-            session: None,
+            session,
         };
         self.next_request_id += 1;
         self.sent.push(SentCorrection {
@@ -123,13 +126,11 @@ impl Corrections {
         };
         let restore = if release { None } else { restore };
         let session = entry.message.session;
-        let mut message = self.issue(&uav, track, restore, before, issued_by, now_s);
+        let mut message = self.issue(&uav, track, session, restore, before, issued_by, now_s);
         message.release = release;
-        message.session = session;
         if let Some(last) = self.sent.last_mut() {
             last.undone = true; // An undo is not itself undone.
             last.message.release = release;
-            last.message.session = session;
         }
         Some(message)
     }
@@ -166,13 +167,11 @@ impl Corrections {
             pinned: entry.previous_pinned,
         };
         let session = entry.message.session;
-        let mut message = self.issue(&uav, track, tower, before, issued_by, now_s);
+        let mut message = self.issue(&uav, track, session, tower, before, issued_by, now_s);
         message.release = release;
-        message.session = session;
         if let Some(last) = self.sent.last_mut() {
             last.undone = undone;
             last.message.release = release;
-            last.message.session = session;
         }
         Some(message)
     }
@@ -265,7 +264,7 @@ mod tests {
     #[test]
     fn a_correction_goes_pending_then_accepted_and_undo_restores_the_old_binding() {
         let mut c = Corrections::starting_at(100);
-        let m = c.issue(&uav(), 7, Some("B2".into()), pinned("B1"), "op", 1.0);
+        let m = c.issue(&uav(), 7, None, Some("B2".into()), pinned("B1"), "op", 1.0);
         assert_eq!(m.request_id, 100);
         assert!(c.pending_for(&uav(), 7).is_some());
         assert_eq!(
@@ -299,7 +298,7 @@ mod tests {
             tower: Some("B1".into()),
             pinned: false,
         };
-        c.issue(&uav(), 7, Some("B2".into()), edge_bound, "op", 1.0);
+        c.issue(&uav(), 7, None, Some("B2".into()), edge_bound, "op", 1.0);
         c.acknowledged(&ack(1, true, None));
         let undo = c.undo(1, "op", 2.0).expect("undo");
         assert!(undo.release, "not pinned to B1: released to the edge");
@@ -309,7 +308,7 @@ mod tests {
     #[test]
     fn an_unanswered_correction_times_out_then_resends_or_cancels_and_a_late_answer_counts() {
         let mut c = Corrections::starting_at(1_764_000_000_000);
-        c.issue(&uav(), 7, Some("B2".into()), pinned("B1"), "op", 10.0);
+        c.issue(&uav(), 7, None, Some("B2".into()), pinned("B1"), "op", 10.0);
         c.expire(10.0 + ANSWER_TIMEOUT_S - 0.1);
         assert_eq!(c.sent[0].state, CorrectionState::Pending);
         c.expire(10.0 + ANSWER_TIMEOUT_S + 0.1);
@@ -336,7 +335,15 @@ mod tests {
     #[test]
     fn a_rejection_keeps_its_reason_and_acks_for_others_are_ignored() {
         let mut c = Corrections::starting_at(1);
-        c.issue(&uav(), 7, Some("Z9".into()), Before::default(), "op", 0.0);
+        c.issue(
+            &uav(),
+            7,
+            None,
+            Some("Z9".into()),
+            Before::default(),
+            "op",
+            0.0,
+        );
         c.acknowledged(&CorrectionAck {
             uav: NodeId::new("other").expect("valid"),
             ..ack(1, true, None)

@@ -67,36 +67,34 @@ pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
             ))
         }
     };
+    fn owned<M: towernav_protocol::Message>(
+        bytes: &[u8],
+        own: impl Fn(&NodeId) -> Result<(), String>,
+        uav: fn(&M) -> &NodeId,
+        event: fn(M) -> NetEvent,
+    ) -> Result<NetEvent, String> {
+        let message: M = decode(bytes).map_err(|e| e.to_string())?;
+        own(uav(&message))?;
+        Ok(event(message))
+    }
     let event = match parsed.topic {
-        Topic::Pose => decode(bytes)
-            .map_err(|e| e.to_string())
-            .and_then(|p: PoseEstimate| own(&p.uav).map(|()| NetEvent::Pose(p))),
-        Topic::Tracks => decode(bytes)
-            .map_err(|e| e.to_string())
-            .and_then(|t: TrackReport| own(&t.uav).map(|()| NetEvent::Tracks(t))),
-        Topic::Status => decode(bytes)
-            .map_err(|e| e.to_string())
-            .and_then(|s: StatusHeartbeat| own(&s.uav).map(|()| NetEvent::Status(s))),
-        Topic::Truth => decode(bytes)
-            .map_err(|e| e.to_string())
-            .and_then(|t: TruthPose| own(&t.uav).map(|()| NetEvent::Truth(t))),
-        Topic::CorrectionAck => decode(bytes)
-            .map_err(|e| e.to_string())
-            .and_then(|a: CorrectionAck| own(&a.uav).map(|()| NetEvent::Ack(a))),
+        Topic::Pose => owned(bytes, own, |p: &PoseEstimate| &p.uav, NetEvent::Pose),
+        Topic::Tracks => owned(bytes, own, |t: &TrackReport| &t.uav, NetEvent::Tracks),
+        Topic::Status => owned(bytes, own, |s: &StatusHeartbeat| &s.uav, NetEvent::Status),
+        Topic::Truth => owned(bytes, own, |t: &TruthPose| &t.uav, NetEvent::Truth),
+        Topic::CorrectionAck => owned(bytes, own, |a: &CorrectionAck| &a.uav, NetEvent::Ack),
         Topic::Preview => {
-            return Some(match decode::<Preview>(bytes) {
-                Ok(meta) if meta.uav != parsed.uav => rejected(format!(
-                    "payload names UAV {} but came on {}'s key: dropped",
-                    meta.uav, parsed.uav
-                )),
-                Ok(meta) => match decode_jpeg(&meta.jpeg) {
-                    Ok(image) => NetEvent::Preview(DecodedPreview {
-                        meta,
-                        image: Arc::new(image),
-                    }),
-                    Err(e) => rejected(format!("preview JPEG: {e}")),
-                },
-                Err(e) => rejected(e.to_string()),
+            let meta = match decode::<Preview>(bytes) {
+                Ok(meta) => meta,
+                Err(e) => return Some(rejected(e.to_string())),
+            };
+            return Some(match own(&meta.uav).map(|()| decode_jpeg(&meta.jpeg)) {
+                Err(e) => rejected(e),
+                Ok(Err(e)) => rejected(format!("preview JPEG: {e}")),
+                Ok(Ok(image)) => NetEvent::Preview(DecodedPreview {
+                    meta,
+                    image: Arc::new(image),
+                }),
             });
         }
         // The ground station's own corrections, and raw boxes (the camera view

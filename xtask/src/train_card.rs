@@ -72,29 +72,12 @@ pub fn write(root: &Path, work: &Path, ort: &Path) -> anyhow::Result<()> {
             (own, model.as_path(), keeps_classifier),
             ("the shipped model", shipped.as_path(), true),
         ] {
-            let score = Command::new(&edge)
-                .arg("eval-detector")
-                .args(["--images", folder, "--names", &names, "--model"])
-                .arg(onnx)
-                .args((!own_types).then_some("--no-type-model"))
-                .arg("--out")
-                .arg(run_dir.join("card-eval"))
-                .env("ORT_DYLIB_PATH", ort)
-                .current_dir(root)
-                .output()
-                .with_context(|| format!("running {}", edge.display()))?;
-            if !score.status.success() {
-                bail!(
-                    "eval-detector on {folder} with {} failed:\n{}",
-                    onnx.display(),
-                    String::from_utf8_lossy(&score.stderr)
-                );
+            let mut args = vec!["--images", folder.as_str(), "--names", names.as_str()];
+            if !own_types {
+                args.push("--no-type-model");
             }
-            writeln!(
-                card,
-                "### {what}\n\n```\n{}```\n",
-                String::from_utf8_lossy(&score.stdout)
-            )?;
+            let score = eval_detector(&edge, &args, onnx, &run_dir, ort, root)?;
+            writeln!(card, "### {what}\n\n```\n{score}```\n")?;
         }
     }
     real_photos(&mut card, &edge, &model, &shipped, work, ort, root)?;
@@ -165,33 +148,50 @@ fn real_photos(
     for (folder, flag) in cases {
         writeln!(card, "### {folder}\n")?;
         for (what, onnx) in [("this model", model), ("the shipped model", shipped)] {
-            let score = Command::new(edge)
-                .arg("eval-detector")
-                .args([flag, folder.as_str()])
-                .args(["--names", "tower_lattice,tower_tucohy,tower_wooden"])
-                .args(["--dont-care", "tower_wooden", "--model"])
-                .arg(onnx)
-                .arg("--out")
-                .arg(work.join("run").join("card-eval"))
-                .env("ORT_DYLIB_PATH", ort)
-                .current_dir(root)
-                .output()
-                .with_context(|| format!("running {}", edge.display()))?;
-            if !score.status.success() {
-                bail!(
-                    "eval-detector {flag} {folder} with {} failed:\n{}",
-                    onnx.display(),
-                    String::from_utf8_lossy(&score.stderr)
-                );
-            }
-            writeln!(
-                card,
-                "#### {what}\n\n```\n{}```\n",
-                String::from_utf8_lossy(&score.stdout)
-            )?;
+            let args = [
+                flag,
+                folder.as_str(),
+                "--names",
+                "tower_lattice,tower_tucohy,tower_wooden",
+                "--dont-care",
+                "tower_wooden",
+            ];
+            let score = eval_detector(edge, &args, onnx, &work.join("run"), ort, root)?;
+            writeln!(card, "#### {what}\n\n```\n{score}```\n")?;
         }
     }
     Ok(())
+}
+
+/// `towernav-edge eval-detector ARGS --model MODEL`, its report as printed.
+fn eval_detector(
+    edge: &Path,
+    args: &[&str],
+    model: &Path,
+    run_dir: &Path,
+    ort: &Path,
+    root: &Path,
+) -> anyhow::Result<String> {
+    let score = Command::new(edge)
+        .arg("eval-detector")
+        .args(args)
+        .arg("--model")
+        .arg(model)
+        .arg("--out")
+        .arg(run_dir.join("card-eval"))
+        .env("ORT_DYLIB_PATH", ort)
+        .current_dir(root)
+        .output()
+        .with_context(|| format!("running {}", edge.display()))?;
+    if !score.status.success() {
+        bail!(
+            "eval-detector {} with {} failed:\n{}",
+            args.join(" "),
+            model.display(),
+            String::from_utf8_lossy(&score.stderr)
+        );
+    }
+    Ok(String::from_utf8_lossy(&score.stdout).into_owned())
 }
 
 /// The shipped type classifier's classes, by id (empty when unreadable).
