@@ -3,7 +3,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use towernav_protocol::{Keys, NodeId, PoseEstimate, decode};
+use towernav_protocol::{Keys, NodeId, PoseEstimate, decode_on_key};
 use zenoh::Session;
 
 use super::ShellError;
@@ -26,10 +26,14 @@ impl PoseCollector {
         let (sink, bad) = (poses.clone(), rejected.clone());
         let task = tokio::spawn(async move {
             while let Ok(sample) = subscriber.recv_async().await {
-                match decode::<PoseEstimate>(&sample.payload().to_bytes()) {
+                // The UAV is the key's: a pose naming another UAV is refused.
+                match decode_on_key::<PoseEstimate>(
+                    sample.key_expr().as_str(),
+                    &sample.payload().to_bytes(),
+                ) {
                     Ok(p) => sink.lock().unwrap_or_else(|e| e.into_inner()).push(p),
                     Err(e) => {
-                        tracing::warn!(key = %sample.key_expr(), error = %e, "undecodable pose");
+                        tracing::warn!(error = %e, "pose refused");
                         *bad.lock().unwrap_or_else(|e| e.into_inner()) += 1;
                     }
                 }

@@ -10,7 +10,7 @@ use towernav_protocol::session::{Endpoints, client_config, session_config};
 
 use towernav_protocol::{
     CorrectionAck, DetectionReport, IdCorrection, Keys, Message, NodeId, PoseEstimate, Preview,
-    StatusHeartbeat, TrackReport, TruthPose, decode, encode,
+    StatusHeartbeat, TrackReport, TruthPose, decode_on_key, encode,
 };
 use zenoh::Session;
 use zenoh::handlers::FifoChannelHandler;
@@ -178,23 +178,33 @@ impl EdgeNode {
     }
 
     fn correction_in(&self, sample: &Sample) -> Option<IdCorrection> {
-        match decode::<IdCorrection>(&sample.payload().to_bytes()) {
+        // Read on the key it came on: a correction naming another UAV is refused.
+        match decode_on_key::<IdCorrection>(
+            sample.key_expr().as_str(),
+            &sample.payload().to_bytes(),
+        ) {
             Ok(c) if c.uav == self.uav => Some(c),
             Ok(c) => {
-                tracing::warn!(key = %sample.key_expr(), uav = %c.uav, "correction for another UAV ignored");
+                self.warn_limited(&format!("correction for UAV {} ignored", c.uav));
                 None
             }
             Err(e) => {
-                let allowed = self
-                    .garbage
-                    .lock()
-                    .map(|mut l| l.allow(std::time::Instant::now()))
-                    .unwrap_or(Some(0));
-                if let Some(held_back) = allowed {
-                    tracing::warn!(key = %sample.key_expr(), error = %e, held_back, "undecodable correction");
-                }
+                self.warn_limited(&e.to_string());
                 None
             }
+        }
+    }
+
+    /// One warning per ten seconds for refused corrections, with how many
+    /// were held back: a flood of them does not flood the log.
+    fn warn_limited(&self, error: &str) {
+        let allowed = self
+            .garbage
+            .lock()
+            .map(|mut l| l.allow(std::time::Instant::now()))
+            .unwrap_or(Some(0));
+        if let Some(held_back) = allowed {
+            tracing::warn!(%error, held_back, "correction refused");
         }
     }
 

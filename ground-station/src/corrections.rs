@@ -209,12 +209,18 @@ impl Corrections {
         }
     }
 
+    /// The first answer of the UAV the correction went to counts; later ones
+    /// (a replay, a forgery) do not overwrite it. `ack.uav` is the UAV of the
+    /// key the answer came on, so another edge cannot answer for it.
     pub fn acknowledged(&mut self, ack: &CorrectionAck) {
-        if let Some(entry) = self
-            .sent
-            .iter_mut()
-            .find(|c| c.message.request_id == ack.request_id && c.message.uav == ack.uav)
-        {
+        if let Some(entry) = self.sent.iter_mut().find(|c| {
+            c.message.request_id == ack.request_id
+                && c.message.uav == ack.uav
+                && !matches!(
+                    c.state,
+                    CorrectionState::Accepted | CorrectionState::Rejected(_)
+                )
+        }) {
             entry.state = if ack.accepted {
                 CorrectionState::Accepted
             } else {
@@ -350,6 +356,12 @@ mod tests {
         });
         assert_eq!(c.sent[0].state, CorrectionState::Pending);
         c.acknowledged(&ack(1, false, Some("unknown tower Z9")));
+        assert_eq!(
+            c.sent[0].state,
+            CorrectionState::Rejected("unknown tower Z9".into())
+        );
+        // The first answer stands: a later one does not turn it around.
+        c.acknowledged(&ack(1, true, None));
         assert_eq!(
             c.sent[0].state,
             CorrectionState::Rejected("unknown tower Z9".into())

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use towernav_protocol::{
     CorrectionAck, Keys, NodeId, PoseEstimate, Preview, StatusHeartbeat, Topic, TrackReport,
-    TruthPose, decode,
+    TruthPose, UavMessage, decode_on_key,
 };
 
 /// A camera preview with its JPEG already decoded (off the UI thread).
@@ -50,53 +50,37 @@ pub fn decode_sample(key: &str, bytes: &[u8]) -> Option<NetEvent> {
         key: key.to_owned(),
         error,
     };
-    let parsed = match Keys::parse_uav(key) {
-        Ok(parsed) => parsed,
+    let topic = match Keys::parse_uav(key) {
+        Ok(parsed) => parsed.topic,
         Err(e) => return Some(rejected(e.to_string())),
     };
     // The UAV is the one whose key the sample came on: the fleet's access
     // rules let an edge publish on its own keys only, so a payload naming
-    // another UAV is an edge posing as it, and is dropped.
-    let own = |named: &NodeId| -> Result<(), String> {
-        if *named == parsed.uav {
-            Ok(())
-        } else {
-            Err(format!(
-                "payload names UAV {named} but came on {}'s key: dropped",
-                parsed.uav
-            ))
-        }
-    };
-    fn owned<M: towernav_protocol::Message>(
+    // another UAV is an edge posing as it, and `decode_on_key` drops it.
+    fn on_key<M: UavMessage>(
+        key: &str,
         bytes: &[u8],
-        own: impl Fn(&NodeId) -> Result<(), String>,
-        uav: fn(&M) -> &NodeId,
         event: fn(M) -> NetEvent,
     ) -> Result<NetEvent, String> {
-        let message: M = decode(bytes).map_err(|e| e.to_string())?;
-        own(uav(&message))?;
-        Ok(event(message))
+        decode_on_key(key, bytes)
+            .map(event)
+            .map_err(|e| e.to_string())
     }
-    let event = match parsed.topic {
-        Topic::Pose => owned(bytes, own, |p: &PoseEstimate| &p.uav, NetEvent::Pose),
-        Topic::Tracks => owned(bytes, own, |t: &TrackReport| &t.uav, NetEvent::Tracks),
-        Topic::Status => owned(bytes, own, |s: &StatusHeartbeat| &s.uav, NetEvent::Status),
-        Topic::Truth => owned(bytes, own, |t: &TruthPose| &t.uav, NetEvent::Truth),
-        Topic::CorrectionAck => owned(bytes, own, |a: &CorrectionAck| &a.uav, NetEvent::Ack),
-        Topic::Preview => {
-            let meta = match decode::<Preview>(bytes) {
-                Ok(meta) => meta,
-                Err(e) => return Some(rejected(e.to_string())),
-            };
-            return Some(match own(&meta.uav).map(|()| decode_jpeg(&meta.jpeg)) {
-                Err(e) => rejected(e),
-                Ok(Err(e)) => rejected(format!("preview JPEG: {e}")),
-                Ok(Ok(image)) => NetEvent::Preview(DecodedPreview {
+    let event = match topic {
+        Topic::Pose => on_key(key, bytes, NetEvent::Pose),
+        Topic::Tracks => on_key(key, bytes, NetEvent::Tracks),
+        Topic::Status => on_key(key, bytes, NetEvent::Status),
+        Topic::Truth => on_key(key, bytes, NetEvent::Truth),
+        Topic::CorrectionAck => on_key(key, bytes, NetEvent::Ack),
+        Topic::Preview => decode_on_key::<Preview>(key, bytes)
+            .map_err(|e| e.to_string())
+            .and_then(|meta| match decode_jpeg(&meta.jpeg) {
+                Ok(image) => Ok(NetEvent::Preview(DecodedPreview {
                     meta,
                     image: Arc::new(image),
-                }),
-            });
-        }
+                })),
+                Err(e) => Err(format!("preview JPEG: {e}")),
+            }),
         // The ground station's own corrections, and raw boxes (the camera view
         // draws tracks): recorded, not decoded.
         Topic::Correction | Topic::Detections => return None,

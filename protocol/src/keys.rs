@@ -64,6 +64,8 @@ impl Topic {
 /// here, in code, so a key cannot be built for the wrong payload.
 pub trait UavMessage: Message {
     const TOPIC: Topic;
+    /// The UAV the payload speaks for; it must be the one of its key.
+    fn uav(&self) -> &NodeId;
 }
 
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -8,6 +8,7 @@ pub mod codec;
 pub mod ids;
 pub mod keys;
 pub mod messages;
+pub mod on_key;
 #[cfg(feature = "zenoh")]
 pub mod security;
 #[cfg(feature = "zenoh")]
@@ -18,3 +19,4 @@ pub use codec::{DecodeError, EncodeError, Message, SCHEMA_VERSION, decode, encod
 pub use ids::{IdError, NodeId};
 pub use keys::{KeyError, Keys, Topic, UavKey, UavMessage};
 pub use messages::*;
+pub use on_key::{OnKeyError, decode_on_key};

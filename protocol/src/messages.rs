@@ -267,30 +267,45 @@ impl Message for PoseEstimate {
 }
 impl UavMessage for PoseEstimate {
     const TOPIC: Topic = Topic::Pose;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 impl Message for TrackReport {
     const KIND: &'static str = "tracks";
 }
 impl UavMessage for TrackReport {
     const TOPIC: Topic = Topic::Tracks;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 impl Message for StatusHeartbeat {
     const KIND: &'static str = "status";
 }
 impl UavMessage for StatusHeartbeat {
     const TOPIC: Topic = Topic::Status;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 impl Message for IdCorrection {
     const KIND: &'static str = "id_correction";
 }
 impl UavMessage for IdCorrection {
     const TOPIC: Topic = Topic::Correction;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 impl Message for CorrectionAck {
     const KIND: &'static str = "correction_ack";
 }
 impl UavMessage for CorrectionAck {
     const TOPIC: Topic = Topic::CorrectionAck;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 impl Message for LandmarkRecord {
     const KIND: &'static str = "landmark";
@@ -323,6 +338,9 @@ impl Message for DetectionReport {
 }
 impl UavMessage for DetectionReport {
     const TOPIC: Topic = Topic::Detections;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 
 /// A JPEG of the camera view, sent at a low rate for the operator.
@@ -343,6 +361,9 @@ impl Message for Preview {
 }
 impl UavMessage for Preview {
     const TOPIC: Topic = Topic::Preview;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 
 /// Where a simulated UAV really was at a frame: published only by edges on
@@ -362,6 +383,9 @@ impl Message for TruthPose {
 }
 impl UavMessage for TruthPose {
     const TOPIC: Topic = Topic::Truth;
+    fn uav(&self) -> &NodeId {
+        &self.uav
+    }
 }
 
 /// Everything the pipeline reads of one camera frame: the detector's boxes and the IMU attitude

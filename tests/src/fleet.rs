@@ -19,7 +19,7 @@ use towernav_fleet::{Authority, node, router};
 use towernav_ground_station::recording::Recorder;
 use towernav_protocol::security::{Credentials, Role};
 use towernav_protocol::session::{Endpoints, client_config, router_config};
-use towernav_protocol::{Keys, NodeId, PoseEstimate, Topic, decode};
+use towernav_protocol::{Keys, NodeId, PoseEstimate, decode_on_key};
 
 /// Pose sequence numbers per UAV, and pose ages in ms, as the subscriber saw them.
 type Seen = (BTreeMap<String, BTreeSet<u64>>, Vec<f64>);
@@ -321,10 +321,10 @@ fn record(recorder: &mut Option<Recorder>, sample: &zenoh::sample::Sample) {
 
 /// Counts `sample` if it is a pose: its seq under its UAV, and its age.
 fn count_pose(sample: &zenoh::sample::Sample, seen: &Mutex<Seen>) -> bool {
-    if !Keys::parse_uav(sample.key_expr().as_str()).is_ok_and(|k| k.topic == Topic::Pose) {
-        return false;
-    }
-    let Ok(pose) = decode::<PoseEstimate>(&sample.payload().to_bytes()) else {
+    // Counted under the UAV of its key; a pose naming another UAV is not counted.
+    let Ok(pose) =
+        decode_on_key::<PoseEstimate>(sample.key_expr().as_str(), &sample.payload().to_bytes())
+    else {
         return false;
     };
     let age_ms = sample
