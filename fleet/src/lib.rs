@@ -8,6 +8,11 @@
 //!
 //! Issuing or revoking a node rewrites every `nodes/*/roster.toml`, so the
 //! whole `nodes/` tree is what gets handed out again.
+//!
+//! Every certificate gets the next serial and the common name
+//! `<node>#<serial>`; the roster names each node's current one, and the
+//! access rules give rights to those names only. A revoked or superseded
+//! certificate is listed as retired and never named again.
 
 use std::path::{Path, PathBuf};
 
@@ -17,7 +22,8 @@ use rcgen::{
 };
 use time::{Duration, OffsetDateTime};
 use towernav_protocol::security::{
-    CA_FILE, CERT_FILE, KEY_FILE, ROSTER_FILE, Role, Roster, RosterNode, SecurityError,
+    CA_FILE, CERT_FILE, CertificateInfo, KEY_FILE, ROSTER_FILE, RetiredCertificate, Role, Roster,
+    RosterNode, SecurityError,
 };
 
 pub mod router;
@@ -126,7 +132,9 @@ impl Authority {
         }
         let roster = Roster {
             fleet: fleet.to_owned(),
+            next_serial: 1,
             nodes: Vec::new(),
+            retired: Vec::new(),
         };
         roster.check().map_err(FleetError::Invalid)?;
         std::fs::create_dir_all(dir).map_err(io(dir))?;
@@ -177,26 +185,48 @@ impl Authority {
         write_file(&self.dir.join(CA_FILE), &self.ca_pem, false)
     }
 
-    /// Signs a certificate for `node`, valid `days`, replacing any earlier
-    /// one of that name, and writes its credentials folder.
+    /// Signs a certificate for `node`, valid `days`, and writes its
+    /// credentials folder. An earlier certificate of that name is superseded:
+    /// it is retired and loses every right.
     pub fn issue(&mut self, node: RosterNode, days: i64) -> Result<PathBuf, FleetError> {
         let mut roster = self.roster.clone();
-        roster.nodes.retain(|n| n.name != node.name);
+        let today = today();
+        if let Some(old) = roster.nodes.iter().position(|n| n.name == node.name) {
+            let old = roster.nodes.remove(old);
+            retire(&mut roster, old, "superseded", &today);
+        }
+        let mut node = RosterNode {
+            certificate: None,
+            ..node
+        };
         roster.nodes.push(node.clone());
         roster.check().map_err(FleetError::Invalid)?;
-        let dir = self.sign(&node, days)?;
+        let (dir, certificate) = self.sign(&node, roster.next_serial, days)?;
+        roster.next_serial += 1;
+        node.certificate = Some(certificate.clone());
+        if let Some(entry) = roster.nodes.iter_mut().find(|n| n.name == node.name) {
+            entry.certificate = Some(certificate);
+        }
+        roster.check().map_err(FleetError::Invalid)?;
         self.roster = roster;
         self.save_roster()?;
         Ok(dir)
     }
 
-    fn sign(&self, node: &RosterNode, days: i64) -> Result<PathBuf, FleetError> {
+    fn sign(
+        &self,
+        node: &RosterNode,
+        serial: u64,
+        days: i64,
+    ) -> Result<(PathBuf, CertificateInfo), FleetError> {
         let what = format!("certificate for {}", node.name);
+        let common_name = CertificateInfo::common_name_of(&node.name, serial);
         let mut params = CertificateParams::new(node.hosts.clone()).map_err(cert_err(&what))?;
         params.distinguished_name = rcgen::DistinguishedName::new();
         params
             .distinguished_name
-            .push(DnType::CommonName, node.name.clone());
+            .push(DnType::CommonName, common_name.clone());
+        params.serial_number = Some(rcgen::SerialNumber::from(serial));
         // Peers both listen and connect: one certificate for both ends.
         params.extended_key_usages = vec![
             ExtendedKeyUsagePurpose::ServerAuth,
@@ -208,25 +238,40 @@ impl Authority {
         ];
         params.use_authority_key_identifier_extension = true;
         validity(&mut params, days);
+        let expires = day(params.not_after);
         let key = KeyPair::generate().map_err(cert_err(&what))?;
         let issuer = Issuer::new(ca_params(&self.roster.fleet, days)?, &self.key);
         let cert = params.signed_by(&key, &issuer).map_err(cert_err(&what))?;
+        let sha256 = ring::digest::digest(&ring::digest::SHA256, cert.der())
+            .as_ref()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
         let dir = self.node_dir(&node.name);
         std::fs::create_dir_all(&dir).map_err(io(&dir))?;
         write_file(&dir.join(KEY_FILE), &key.serialize_pem(), true)?;
         write_file(&dir.join(CERT_FILE), &cert.pem(), false)?;
         write_file(&dir.join(CA_FILE), &self.ca_pem, false)?;
-        Ok(dir)
+        Ok((
+            dir,
+            CertificateInfo {
+                common_name,
+                serial,
+                sha256,
+                expires,
+            },
+        ))
     }
 
-    /// Takes `name` off the roster and deletes its folder: every node that
-    /// gets the new roster denies it everything. Its certificate still
-    /// passes TLS until it expires or the CA is rotated.
+    /// Takes `name` off the roster, retires its certificate and deletes its
+    /// folder: every node that gets the new roster denies that certificate
+    /// everything, and issuing the name again later does not bring it back.
     pub fn revoke(&mut self, name: &str) -> Result<(), FleetError> {
-        if self.roster.node(name).is_none() {
+        let Some(index) = self.roster.nodes.iter().position(|n| n.name == name) else {
             return Err(FleetError::Invalid(format!("no node named {name:?}")));
-        }
-        self.roster.nodes.retain(|n| n.name != name);
+        };
+        let node = self.roster.nodes.remove(index);
+        retire(&mut self.roster, node, "revoked", &today());
         let dir = self.node_dir(name);
         if dir.exists() {
             std::fs::remove_dir_all(&dir).map_err(io(&dir))?;
@@ -239,8 +284,15 @@ impl Authority {
     pub fn rotate_ca(&mut self, ca_days: i64, node_days: i64) -> Result<(), FleetError> {
         self.key = KeyPair::generate().map_err(cert_err("CA key"))?;
         self.new_ca(ca_days)?;
-        for node in self.roster.nodes.clone() {
-            self.sign(&node, node_days)?;
+        let today = today();
+        for node in std::mem::take(&mut self.roster.nodes) {
+            let (_, certificate) = self.sign(&node, self.roster.next_serial, node_days)?;
+            self.roster.next_serial += 1;
+            retire(&mut self.roster, node.clone(), "superseded", &today);
+            self.roster.nodes.push(RosterNode {
+                certificate: Some(certificate),
+                ..node
+            });
         }
         self.save_roster()
     }
@@ -256,6 +308,82 @@ impl Authority {
             }
         }
         Ok(())
+    }
+}
+
+/// Lists `node`'s certificate among the retired ones.
+fn retire(roster: &mut Roster, node: RosterNode, why: &str, on: &str) {
+    if let Some(certificate) = node.certificate {
+        roster.retired.push(RetiredCertificate {
+            node: node.name,
+            certificate,
+            why: why.to_owned(),
+            on: on.to_owned(),
+        });
+    }
+}
+
+fn day(at: OffsetDateTime) -> String {
+    format!(
+        "{:04}-{:02}-{:02}",
+        at.year(),
+        u8::from(at.month()),
+        at.day()
+    )
+}
+
+fn today() -> String {
+    day(OffsetDateTime::now_utc())
+}
+
+/// The roster as a table: each node's current certificate, then the retired ones.
+pub fn listing(roster: &Roster) -> String {
+    let mut out = format!("fleet {}\n\nnodes (current certificates):\n", roster.fleet);
+    out += &format!(
+        "  {:<16} {:<15} {:<10} {:<22} {:<17} {}\n",
+        "name", "role", "uav", "certificate", "sha256", "expires"
+    );
+    for node in &roster.nodes {
+        let (cn, sha, expires) = match &node.certificate {
+            Some(c) => (
+                c.common_name.as_str(),
+                &c.sha256[..16.min(c.sha256.len())],
+                c.expires.as_str(),
+            ),
+            None => (node.name.as_str(), "-", "-"),
+        };
+        out += &format!(
+            "  {:<16} {:<15} {:<10} {:<22} {:<17} {}\n",
+            node.name,
+            role_name(node.role),
+            node.uav.as_deref().unwrap_or("-"),
+            cn,
+            sha,
+            expires
+        );
+    }
+    out += "\nretired certificates (no rights, whatever is issued later):\n";
+    if roster.retired.is_empty() {
+        out += "  none\n";
+    }
+    for r in &roster.retired {
+        let c = &r.certificate;
+        out += &format!(
+            "  {:<22} {:<10} on {}  sha256 {}\n",
+            c.common_name,
+            r.why,
+            r.on,
+            &c.sha256[..16.min(c.sha256.len())]
+        );
+    }
+    out
+}
+
+fn role_name(role: Role) -> &'static str {
+    match role {
+        Role::GroundStation => "ground-station",
+        Role::Router => "router",
+        Role::Edge => "edge",
     }
 }
 
@@ -276,6 +404,7 @@ pub fn node(
         role,
         uav: uav.map(str::to_owned),
         hosts: hosts.to_vec(),
+        certificate: None,
     })
 }
 

@@ -1,5 +1,6 @@
 use super::*;
 use std::process::Command;
+use towernav_protocol::security::Credentials;
 
 /// `openssl verify` of `cert` against `ca`: `Some(passed)`, or `None` on a
 /// machine without openssl.
@@ -112,8 +113,50 @@ fn rotation_and_revocation_rewrite_every_folder() {
     }
     ca.revoke("edge-7").expect("revoke");
     assert!(!edge.exists());
-    let roster = std::fs::read_to_string(gs.join(ROSTER_FILE)).expect("roster");
-    assert!(!roster.contains("edge-7"), "{roster}");
+    let text = std::fs::read_to_string(gs.join(ROSTER_FILE)).expect("roster");
+    let roster = Roster::from_toml(&text, "roster").expect("roster");
+    assert!(roster.node("edge-7").is_none(), "{text}");
+    // Its first certificate was superseded by the rotation, its second revoked.
+    let retired: Vec<(&str, &str)> = roster
+        .retired
+        .iter()
+        .filter(|r| r.node == "edge-7")
+        .map(|r| (r.certificate.common_name.as_str(), r.why.as_str()))
+        .collect();
+    assert_eq!(
+        retired,
+        vec![("edge-7#2", "superseded"), ("edge-7#4", "revoked")],
+        "{text}"
+    );
+}
+
+#[test]
+fn a_name_issued_again_does_not_bring_back_its_old_certificates() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let dir = tmp.path().join("fleet");
+    let mut ca = Authority::init(&dir, "demo", 30).expect("init");
+    let edge = || node("edge-8", Role::Edge, Some("uav-8"), &[]).expect("node");
+    ca.issue(edge(), 10).expect("issue");
+    ca.issue(edge(), 10).expect("reissue");
+    ca.revoke("edge-8").expect("revoke");
+    ca.issue(edge(), 10).expect("a replacement vehicle");
+    let roster = ca.roster();
+    let current = roster.node("edge-8").and_then(|n| n.certificate.clone());
+    assert_eq!(current.map(|c| c.common_name), Some("edge-8#3".to_owned()));
+    let acl = roster.access_control().to_string();
+    assert!(acl.contains("\"edge-8#3\""), "{acl}");
+    for old in ["edge-8#1", "edge-8#2"] {
+        assert!(
+            !acl.contains(&format!("\"{old}\"")),
+            "{old} still has rights: {acl}"
+        );
+    }
+    let listing = crate::listing(roster);
+    for line in ["edge-8#1", "superseded", "edge-8#2", "revoked", "edge-8#3"] {
+        assert!(listing.contains(line), "{listing}");
+    }
+    // The folder on disk is the current certificate's: it loads.
+    Credentials::load(&ca.node_dir("edge-8"), "edge-8").expect("current folder loads");
 }
 
 #[test]

@@ -11,15 +11,17 @@ const ROTATION: &str = "\
 Rotating:
   a node's certificate:  `towernav-fleet issue` again with the same --name
                          (same role); copy its nodes/<name>/ folder to it and
-                         restart it. Links close when a certificate expires.
+                         restart it. The old certificate is superseded: it loses
+                         its rights once the others have the new roster.
   the CA:                `towernav-fleet rotate-ca` makes a new CA and issues
                          every node on the roster again; hand out the whole
                          nodes/ tree and restart every node.
   taking a node out:     `towernav-fleet revoke --name N`, then hand out the
-                         nodes/ tree (every node's roster): the others deny it
-                         everything. Its certificate still passes TLS until it
-                         expires or the CA is rotated: rotate the CA for a
-                         stolen vehicle.";
+                         nodes/ tree (every node's roster): the others deny its
+                         certificate everything, for good (the rules name
+                         certificates by serial, and a serial is never named
+                         again). It still completes a TLS handshake until it
+                         expires or the CA is rotated, and gets nothing.";
 
 /// The fleet's own certificate authority: certificates for mutual TLS between
 /// edges, ground stations and routers, and the roster every node builds its
@@ -84,7 +86,10 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Lists the roster.
+    /// Lists each node's current certificate (serial, fingerprint, expiry)
+    /// and the retired ones.
+    List,
+    /// Prints the roster file.
     Show,
 }
 
@@ -154,6 +159,12 @@ fn main() -> anyhow::Result<()> {
             let text = serde_json::to_string_pretty(&config)?;
             std::fs::write(&out, text).with_context(|| format!("writing {}", out.display()))?;
             println!("zenohd -c {}", out.display());
+        }
+        Command::List => {
+            print!(
+                "{}",
+                towernav_fleet::listing(Authority::open(dir)?.roster())
+            );
         }
         Command::Show => {
             let authority = Authority::open(dir)?;

@@ -8,6 +8,12 @@
 //!
 //! A node's credentials are one folder (`towernav-fleet issue` writes it):
 //! `ca.pem`, `node.pem`, `node.key` and `roster.toml`, the fleet's nodes.
+//!
+//! The rules name certificates, not nodes: each certificate's common name is
+//! `<node>#<serial>`, the serial counted up by the CA for every certificate it
+//! signs. Re-issuing or revoking a node leaves its earlier certificates out of
+//! every rule for good, since no later roster can name their serials again,
+//! and the access control denies whatever no rule allows.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -39,6 +45,8 @@ pub enum SecurityError {
     Roster { path: String, reason: String },
     #[error("{path}: no node named {name:?} in the roster")]
     NotInRoster { path: PathBuf, name: String },
+    #[error("{path}: {reason}")]
+    Certificate { path: PathBuf, reason: String },
 }
 
 /// What a node is allowed to do.
@@ -65,6 +73,44 @@ pub struct RosterNode {
     /// Names and addresses its certificate is valid for (peers check them on connect).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub hosts: Vec<String>,
+    /// Its current certificate; `None` in a roster from before certificates
+    /// were named by serial (the rules then name the node itself).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub certificate: Option<CertificateInfo>,
+}
+
+/// One certificate the fleet CA signed.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CertificateInfo {
+    /// `<node>#<serial>`: what the access rules name.
+    pub common_name: String,
+    pub serial: u64,
+    /// SHA-256 of the DER certificate, hex.
+    pub sha256: String,
+    /// Last valid day, UTC, `YYYY-MM-DD`.
+    pub expires: String,
+}
+
+impl CertificateInfo {
+    /// The common name of `node`'s certificate with `serial`.
+    pub fn common_name_of(node: &str, serial: u64) -> String {
+        format!("{node}#{serial}")
+    }
+}
+
+/// A certificate that no longer has any right: revoked, or superseded by a
+/// newer one of the same node.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RetiredCertificate {
+    pub node: String,
+    #[serde(flatten)]
+    pub certificate: CertificateInfo,
+    /// `revoked` or `superseded`.
+    pub why: String,
+    /// The day it was retired, UTC, `YYYY-MM-DD`.
+    pub on: String,
 }
 
 /// The fleet's nodes: every node enforces the rules built from it.
@@ -72,8 +118,19 @@ pub struct RosterNode {
 #[serde(deny_unknown_fields)]
 pub struct Roster {
     pub fleet: String,
+    /// The serial the CA signs its next certificate with.
+    #[serde(default = "first_serial")]
+    pub next_serial: u64,
     #[serde(default, rename = "node")]
     pub nodes: Vec<RosterNode>,
+    /// Certificates that lost their rights, kept so that `list` shows them
+    /// and no serial is used twice.
+    #[serde(default, rename = "retired", skip_serializing_if = "Vec::is_empty")]
+    pub retired: Vec<RetiredCertificate>,
+}
+
+fn first_serial() -> u64 {
+    1
 }
 
 const ALL_MESSAGES: [&str; 9] = [
@@ -143,6 +200,32 @@ impl Roster {
                 (_, None) => {}
             }
         }
+        let mut common_names = BTreeSet::new();
+        for node in &self.nodes {
+            if let Some(cert) = &node.certificate {
+                if cert.common_name != CertificateInfo::common_name_of(&node.name, cert.serial) {
+                    return Err(format!(
+                        "node {:?}: certificate {:?} is not named <node>#<serial>",
+                        node.name, cert.common_name
+                    ));
+                }
+                if cert.serial >= self.next_serial {
+                    return Err(format!(
+                        "node {:?}: serial {} is not below next_serial {}",
+                        node.name, cert.serial, self.next_serial
+                    ));
+                }
+            }
+            common_names.insert(Self::common_name(node));
+        }
+        for retired in &self.retired {
+            if common_names.contains(retired.certificate.common_name.as_str()) {
+                return Err(format!(
+                    "certificate {:?} is both current and retired",
+                    retired.certificate.common_name
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -150,9 +233,21 @@ impl Roster {
         self.nodes.iter().find(|n| n.name == name)
     }
 
-    /// Zenoh's `access_control` section: denied unless allowed; ground stations
-    /// and routers may do anything; edges may listen, query and receive, and
-    /// send only on their own UAV's outgoing keys.
+    /// The common name the rules give rights to for `node`: its current
+    /// certificate's, or its name in a roster without certificates.
+    pub fn common_name(node: &RosterNode) -> &str {
+        node.certificate
+            .as_ref()
+            .map_or(node.name.as_str(), |c| c.common_name.as_str())
+    }
+
+    /// Zenoh's `access_control` section: denied unless allowed. Ground
+    /// stations and routers may do anything. An edge may send only on its own
+    /// UAV's outgoing keys and liveliness token, and is sent only the
+    /// landmarks and its own UAV's keys (its corrections, the queries on its
+    /// pose cache): nothing of another UAV. What it may hear besides is
+    /// interest (others' subscriptions and queries), never data, so that its
+    /// publications find their subscribers.
     pub fn access_control(&self) -> Value {
         let fleet = &self.fleet;
         let whole_fleet = [
@@ -163,11 +258,17 @@ impl Roster {
             self.nodes
                 .iter()
                 .filter(|n| roles.contains(&n.role))
-                .map(|n| n.name.as_str())
+                .map(Self::common_name)
                 .collect()
         };
         let trusted = names(&[Role::GroundStation, Role::Router]);
         let edges = names(&[Role::Edge]);
+        let interest = [
+            "declare_subscriber",
+            "declare_liveliness_subscriber",
+            "query",
+            "liveliness_query",
+        ];
         let mut rules = vec![
             json!({
                 "id": "anything",
@@ -177,17 +278,24 @@ impl Roster {
                 "key_exprs": whole_fleet,
             }),
             json!({
-                "id": "deliver-to-edges",
+                "id": "edges-hear-interest",
                 "permission": "allow",
                 "flows": ["egress"],
-                "messages": ALL_MESSAGES,
+                "messages": interest,
                 "key_exprs": whole_fleet,
+            }),
+            json!({
+                "id": "landmarks-to-edges",
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": ["put", "delete", "reply", "declare_queryable"],
+                "key_exprs": [format!("towernav/{fleet}/landmarks/**")],
             }),
             json!({
                 "id": "edges-listen",
                 "permission": "allow",
                 "flows": ["ingress"],
-                "messages": ["declare_subscriber", "declare_liveliness_subscriber", "liveliness_query", "query"],
+                "messages": interest,
                 "key_exprs": whole_fleet,
             }),
         ];
@@ -199,9 +307,10 @@ impl Roster {
         }
         if !edges.is_empty() {
             subjects.push(json!({"id": "edges", "cert_common_names": edges}));
-            policies.push(
-                json!({"rules": ["deliver-to-edges", "edges-listen"], "subjects": ["edges"]}),
-            );
+            policies.push(json!({
+                "rules": ["edges-hear-interest", "landmarks-to-edges", "edges-listen"],
+                "subjects": ["edges"],
+            }));
         }
         let keys = NodeId::new(fleet.clone()).ok().map(Keys::new);
         for node in self.nodes.iter().filter(|n| n.role == Role::Edge) {
@@ -222,8 +331,21 @@ impl Roster {
                 "messages": ["put", "delete", "declare_queryable", "reply", "liveliness_token"],
                 "key_exprs": own,
             }));
-            subjects.push(json!({"id": id, "cert_common_names": [node.name]}));
-            policies.push(json!({"rules": [id], "subjects": [id]}));
+            let uav_root = format!("towernav/{fleet}/uav/{uav}");
+            let to = format!("to-{}", node.name);
+            rules.push(json!({
+                "id": to,
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": ALL_MESSAGES,
+                "key_exprs": [
+                    format!("{uav_root}/**"),
+                    format!("{uav_root}/*/@adv/**"),
+                    keys.alive(&uav),
+                ],
+            }));
+            subjects.push(json!({"id": id, "cert_common_names": [Self::common_name(node)]}));
+            policies.push(json!({"rules": [id, to], "subjects": [id]}));
         }
         json!({
             "enabled": true,
@@ -233,6 +355,30 @@ impl Roster {
             "policies": policies,
         })
     }
+}
+
+/// The subject common name of the PEM certificate at `path`.
+fn certificate_common_name(path: &Path) -> Result<String, SecurityError> {
+    let bad = |reason: String| SecurityError::Certificate {
+        path: path.to_owned(),
+        reason,
+    };
+    let bytes = std::fs::read(path).map_err(|source| SecurityError::Read {
+        path: path.to_owned(),
+        source,
+    })?;
+    let (_, pem) = x509_parser::pem::parse_x509_pem(&bytes)
+        .map_err(|e| bad(format!("not a PEM certificate: {e}")))?;
+    let cert = pem
+        .parse_x509()
+        .map_err(|e| bad(format!("not an X.509 certificate: {e}")))?;
+    let common_name = cert
+        .subject()
+        .iter_common_name()
+        .next()
+        .and_then(|cn| cn.as_str().ok())
+        .ok_or_else(|| bad("the certificate has no common name".into()))?;
+    Ok(common_name.to_owned())
 }
 
 fn read_roster(dir: &Path) -> Result<(PathBuf, Roster), SecurityError> {
@@ -262,10 +408,22 @@ impl Credentials {
             std::fs::metadata(&path).map_err(|source| SecurityError::Read { path, source })?;
         }
         let (path, roster) = read_roster(dir)?;
-        if roster.node(name).is_none() {
+        let Some(node) = roster.node(name) else {
             return Err(SecurityError::NotInRoster {
                 path,
                 name: name.to_owned(),
+            });
+        };
+        let cert_path = dir.join(CERT_FILE);
+        let common_name = certificate_common_name(&cert_path)?;
+        let expected = Roster::common_name(node);
+        if common_name != expected {
+            return Err(SecurityError::Certificate {
+                path: cert_path,
+                reason: format!(
+                    "this is certificate {common_name:?}, but the roster gives {name}'s rights to \
+                     {expected:?}: the folder is out of date (copy nodes/{name}/ from the CA again)"
+                ),
             });
         }
         Ok(Self {
@@ -339,6 +497,8 @@ impl Credentials {
             ("transport/link/tls/connect_private_key", file(KEY_FILE)),
             ("transport/link/tls/enable_mtls", "true".into()),
             ("transport/link/tls/close_link_on_expiration", "true".into()),
+            // Nothing but TLS is opened or accepted, whatever gossip offers.
+            ("transport/link/protocols", r#"["tls"]"#.into()),
             ("access_control", self.roster.access_control().to_string()),
         ]
     }

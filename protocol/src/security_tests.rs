@@ -98,14 +98,86 @@ fn ground_stations_may_do_anything_and_strangers_nothing() {
     assert!(rules_of(&acl, "someone-else").is_empty());
 }
 
+/// A credentials folder whose certificate is self-signed with common name `cn`.
+fn write_credentials(dir: &Path, cn: &str) {
+    let key = rcgen::KeyPair::generate().expect("key");
+    let mut params = rcgen::CertificateParams::new(Vec::<String>::new()).expect("params");
+    params
+        .distinguished_name
+        .push(rcgen::DnType::CommonName, cn);
+    let cert = params.self_signed(&key).expect("cert");
+    std::fs::write(dir.join(CA_FILE), cert.pem()).expect("write");
+    std::fs::write(dir.join(CERT_FILE), cert.pem()).expect("write");
+    std::fs::write(dir.join(KEY_FILE), key.serialize_pem()).expect("write");
+    std::fs::write(dir.join(ROSTER_FILE), ROSTER).expect("write");
+}
+
+fn session_json(credentials: &Credentials, key: &str) -> String {
+    let config = crate::session::session_config(&crate::session::Endpoints {
+        listen: vec!["tls/127.0.0.1:17449".into()],
+        connect: vec![],
+        security: Some(credentials.clone()),
+    })
+    .expect("config");
+    config.get_json(key).expect("key")
+}
+
+#[test]
+fn a_folder_whose_certificate_the_roster_does_not_name_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A superseded certificate beside a roster that names its successor.
+    write_credentials(dir.path(), "edge-7#1");
+    let roster = ROSTER.replace(
+        "uav = \"uav-7\"\n",
+        "uav = \"uav-7\"\n[node.certificate]\ncommon_name = \"edge-7#2\"\nserial = 2\nsha256 = \"00\"\nexpires = \"2030-01-01\"\n",
+    );
+    let roster = format!("next_serial = 3\n{roster}");
+    std::fs::write(dir.path().join(ROSTER_FILE), roster).expect("write");
+    let err = Credentials::load(dir.path(), "edge-7").expect_err("stale folder");
+    assert!(
+        err.to_string().contains("edge-7#1") && err.to_string().contains("edge-7#2"),
+        "{err}"
+    );
+}
+
+#[test]
+fn an_edge_is_sent_only_the_landmarks_and_its_own_uavs_keys() {
+    let acl = roster().access_control();
+    let rules = rules_of(&acl, "edge-7");
+    for id in &rules {
+        let rule = rule(&acl, id);
+        let egress = rule["flows"]
+            .as_array()
+            .is_some_and(|f| f.iter().any(|f| f == "egress"));
+        let data = rule["messages"].as_array().is_some_and(|m| {
+            m.iter()
+                .any(|m| ["put", "reply", "liveliness_token"].contains(&m.as_str().unwrap_or("")))
+        });
+        if !(egress && data) {
+            continue;
+        }
+        for key in rule["key_exprs"].as_array().expect("keys") {
+            let key = key.as_str().unwrap_or("");
+            assert!(
+                key.starts_with("towernav/demo/uav/uav-7/")
+                    || key == "towernav/demo/alive/uav-7"
+                    || key.starts_with("towernav/demo/landmarks/"),
+                "rule {id} sends edge-7 data on {key}"
+            );
+        }
+    }
+}
+
 #[test]
 fn zenoh_takes_the_rules_and_the_tls_files() {
     let dir = tempfile::tempdir().expect("tempdir");
-    for f in [CA_FILE, CERT_FILE, KEY_FILE] {
-        std::fs::write(dir.path().join(f), "pem").expect("write");
-    }
-    std::fs::write(dir.path().join(ROSTER_FILE), ROSTER).expect("write");
+    write_credentials(dir.path(), "gs-1");
     let credentials = Credentials::load(dir.path(), "gs-1").expect("credentials");
+    assert_eq!(
+        session_json(&credentials, "transport/link/protocols"),
+        r#"["tls"]"#,
+        "links other than TLS must be refused, gossiped ones too"
+    );
     let endpoints = crate::session::Endpoints {
         listen: vec!["tls/127.0.0.1:17448".into()],
         connect: vec![],

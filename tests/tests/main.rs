@@ -5,6 +5,7 @@ mod coco_start;
 mod detector;
 mod edge_daemon;
 mod fleet;
+mod fleet_attacks;
 mod fleet_security;
 mod flight_logs;
 mod flight_replay;
