@@ -25,6 +25,8 @@ impl PoseCollector {
         let rejected = Arc::new(Mutex::new(0));
         let (sink, bad) = (poses.clone(), rejected.clone());
         let task = tokio::spawn(async move {
+            // One warning per ten seconds, with how many were held back.
+            let mut log = towernav_core::log_limit::LogLimiter::default();
             while let Ok(sample) = subscriber.recv_async().await {
                 // The UAV is the key's: a pose naming another UAV is refused.
                 match decode_on_key::<PoseEstimate>(
@@ -33,7 +35,9 @@ impl PoseCollector {
                 ) {
                     Ok(p) => sink.lock().unwrap_or_else(|e| e.into_inner()).push(p),
                     Err(e) => {
-                        tracing::warn!(error = %e, "pose refused");
+                        if let Some(held_back) = log.allow(std::time::Instant::now()) {
+                            tracing::warn!(error = %e, held_back, "pose refused");
+                        }
                         *bad.lock().unwrap_or_else(|e| e.into_inner()) += 1;
                     }
                 }
