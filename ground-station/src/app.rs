@@ -11,6 +11,7 @@ use towernav_geometry::{Datum, Geodetic};
 use towernav_landmark_db::{
     Author, CheckKind, DbError, Expect, Format, HistoryEntry, ImportOptions, LandmarkDb,
     OsmMapping, export_csv, export_geojson, export_osm_xml, import_file, likely_mistakes,
+    parse_file,
 };
 use towernav_protocol::{LandmarkRecord, NodeId};
 
@@ -20,26 +21,58 @@ use crate::events::NetEvent;
 use crate::fleet::Fleet;
 use crate::fleet_panel;
 use crate::label_review_view::{self, ReviewView};
-use crate::landmark_editor::{self, EditorAction, EditorState, FileFormat, PendingImport};
+use crate::landmark_editor::{
+    self, EditorAction, EditorState, FileFormat, PendingImport, UNDO_DEPTH, UndoStep,
+};
 use crate::map_view::{self, MapState, MapTower};
 use crate::net::{NetCommand, NetLink};
 use crate::recording::ReplayPlayer;
 use crate::session_bar::{self, RecordAction};
 use crate::tiles::TileLayer;
 
-/// The map frame's origin: the towers' centroid, on the lowest foot.
+/// How far from the towers' median a tower may stand and still pull the
+/// map's origin and first view: a typo'd latitude thousands of km off does not.
+pub const MAP_CORE_RADIUS_M: f64 = 20_000.0;
+
+/// The map frame's origin: the towers' median position (one tower far off
+/// does not move it), on the lowest foot among the towers near it.
 pub fn map_datum(landmarks: &[LandmarkRecord]) -> Option<Datum> {
     if landmarks.is_empty() {
         return None;
     }
-    let n = landmarks.len() as f64;
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    let centre = Geodetic {
+        lat_deg: median(landmarks.iter().map(|l| l.lat_deg).collect()),
+        lon_deg: median(landmarks.iter().map(|l| l.lon_deg).collect()),
+        height_m: 0.0,
+    };
+    let near = Datum::new(centre);
+    let core: Vec<&LandmarkRecord> = landmarks
+        .iter()
+        .filter(|l| {
+            let en = near.to_enu(&Geodetic {
+                lat_deg: l.lat_deg,
+                lon_deg: l.lon_deg,
+                height_m: 0.0,
+            });
+            en.x.hypot(en.y) <= MAP_CORE_RADIUS_M
+        })
+        .collect();
+    let lowest = core
+        .iter()
+        .map(|l| l.ground_elev_m)
+        .fold(f64::INFINITY, f64::min);
     Some(Datum::new(Geodetic {
-        lat_deg: landmarks.iter().map(|l| l.lat_deg).sum::<f64>() / n,
-        lon_deg: landmarks.iter().map(|l| l.lon_deg).sum::<f64>() / n,
-        height_m: landmarks
-            .iter()
-            .map(|l| l.ground_elev_m)
-            .fold(f64::INFINITY, f64::min),
+        height_m: if lowest.is_finite() { lowest } else { 0.0 },
+        ..centre
     }))
 }
 
@@ -405,6 +438,30 @@ impl GsApp {
         }
     }
 
+    fn push_undo(&mut self, step: UndoStep) {
+        self.editor.undo.push(step);
+        if self.editor.undo.len() > UNDO_DEPTH {
+            self.editor.undo.remove(0);
+        }
+    }
+
+    /// Every tower `path` would write, as the database holds it now (`None`:
+    /// new): what undoing the import restores. `None` if the file does not
+    /// parse (the import then fails and says why).
+    fn before_import(
+        &self,
+        path: &std::path::Path,
+        format: Format,
+        options: &ImportOptions,
+    ) -> Option<Vec<(String, Option<LandmarkRecord>)>> {
+        let parsed = parse_file(path, format, &options.osm).ok()?;
+        parsed
+            .records
+            .iter()
+            .map(|r| Some((r.id.clone(), self.db.get(&r.id).ok()?)))
+            .collect()
+    }
+
     fn apply_editor(&mut self, action: EditorAction) {
         let author = Author::now(&self.options.operator);
         let outcome: Result<String, String> = match action {
@@ -420,7 +477,9 @@ impl GsApp {
                 .map_err(|e| e.to_string()),
             EditorAction::Delete(id) => match self.db.remove(&id, &author) {
                 Ok(Some(rev)) => {
-                    self.editor.undo_delete = self.records.iter().find(|r| r.id == id).cloned();
+                    if let Some(gone) = self.records.iter().find(|r| r.id == id).cloned() {
+                        self.push_undo(UndoStep::Delete(gone));
+                    }
                     self.editor.editing = None;
                     self.editor.form = Default::default();
                     self.editor.touched.clear();
@@ -429,11 +488,29 @@ impl GsApp {
                 Ok(None) => Err(format!("{id} was already gone")),
                 Err(e) => Err(e.to_string()),
             },
-            EditorAction::Restore(record) => self
-                .db
-                .upsert_expecting(&record, Expect::Absent, &author)
-                .map(|rev| format!("restored {} (revision {rev})", record.id))
-                .map_err(|e| format!("{} was not restored: {e}", record.id)),
+            // A refused undo keeps its step: the operator can try again.
+            EditorAction::Undo => match self.editor.undo.last().cloned() {
+                None => Err("nothing to undo".into()),
+                Some(UndoStep::Delete(record)) => self
+                    .db
+                    .upsert_expecting(&record, Expect::Absent, &author)
+                    .map(|rev| {
+                        self.editor.undo.pop();
+                        format!("restored {} (revision {rev})", record.id)
+                    })
+                    .map_err(|e| format!("{} was not restored: {e}", record.id)),
+                Some(UndoStep::Import { file, before }) => self
+                    .db
+                    .revert(&before, &author)
+                    .map(|rev| {
+                        self.editor.undo.pop();
+                        format!(
+                            "took back the import of {file}: {} towers as they were (revision {rev})",
+                            before.len()
+                        )
+                    })
+                    .map_err(|e| format!("the import of {file} was not taken back: {e}")),
+            },
             EditorAction::Import(path, file_format, confirmed) => {
                 let options = ImportOptions {
                     osm: OsmMapping::towernav(),
@@ -464,8 +541,19 @@ impl GsApp {
                     return;
                 }
                 self.editor.pending_import = None;
+                let before = self.before_import(&path, format, &options);
                 import_file(&mut self.db, &path, format, &options, &author)
                     .map(|r| {
+                        if let Some(before) = before.filter(|b| !b.is_empty()) {
+                            self.push_undo(UndoStep::Import {
+                                file: path
+                                    .file_name()
+                                    .map_or_else(|| path.display().to_string(), |n| {
+                                        n.to_string_lossy().into_owned()
+                                    }),
+                                before,
+                            });
+                        }
                         let mut text = format!(
                             "imported {} towers from {} (revision {})",
                             r.imported,
@@ -847,5 +935,49 @@ mod tests {
         app.apply_editor(EditorAction::Import(file, FileFormat::Csv, true));
         assert_eq!(app.records.len(), 4);
         assert!(app.editor.pending_import.is_none());
+        // The map's origin stays on the line, not halfway to C2.
+        let datum = crate::app::map_datum(&app.records).expect("datum");
+        assert!((datum.origin.lat_deg - 30.52).abs() < 0.01, "{datum:?}");
+    }
+
+    #[test]
+    fn an_import_is_taken_back_as_a_whole_and_a_refused_undo_stays() {
+        use crate::landmark_editor::{EditorAction, FileFormat, UndoStep};
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (_tx, _commands, mut app) = app();
+        let a1 = app.db.get("A1").expect("db").expect("A1");
+        let file = dir.path().join("resurvey.csv");
+        // A1 moved by the re-survey, C1 new.
+        std::fs::write(
+            &file,
+            "id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m\n\
+             A1,A,30.5201,114.3601,25,35\n\
+             C1,A,30.5231,114.3612,24.5,33\n",
+        )
+        .expect("write");
+        app.apply_editor(EditorAction::Import(file, FileFormat::Csv, true));
+        assert_eq!(app.records.len(), 3);
+        let step = app.editor.undo.last().cloned().expect("an undo step");
+        assert_eq!(step.label(), "Undo import of resurvey.csv (2 towers)");
+        // One undo puts A1 back where it was and removes C1, in one go.
+        app.apply_editor(EditorAction::Undo);
+        let back = app.db.get("A1").expect("db").expect("A1");
+        assert_eq!(
+            (back.lat_deg, back.lon_deg, back.height_m),
+            (a1.lat_deg, a1.lon_deg, a1.height_m)
+        );
+        assert!(app.db.get("C1").expect("db").is_none());
+        assert!(app.editor.undo.is_empty());
+        // A delete's undo refused (the id was taken again) keeps its button.
+        app.apply_editor(EditorAction::Delete("A1".into()));
+        assert!(matches!(app.editor.undo.last(), Some(UndoStep::Delete(_))));
+        app.db
+            .upsert(&a1, &towernav_landmark_db::Author::now("someone else"))
+            .expect("retaken");
+        app.apply_editor(EditorAction::Undo);
+        assert!(
+            matches!(app.editor.undo.last(), Some(UndoStep::Delete(_))),
+            "a refused undo lost its step"
+        );
     }
 }

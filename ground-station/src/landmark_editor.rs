@@ -40,12 +40,47 @@ pub enum EditorAction {
     /// filled (a new id: none), so a concurrent writer's edit is not overwritten.
     Upsert(Box<LandmarkRecord>, towernav_landmark_db::Expect),
     Delete(String),
-    /// Put a deleted tower back as it was (its id must still be free).
-    Restore(Box<LandmarkRecord>),
+    /// Take back the last step of [`EditorState::undo`]: a delete or an import.
+    Undo,
     /// Import a file; `true`: the operator saw its warnings and imports anyway.
     Import(std::path::PathBuf, FileFormat, bool),
     /// Export to a file; `true`: replace it if it exists (the operator said so).
     Export(std::path::PathBuf, FileFormat, bool),
+}
+
+/// How many deletes and imports can be taken back.
+pub const UNDO_DEPTH: usize = 20;
+
+/// A change the operator can take back as a whole.
+#[derive(Debug, Clone, PartialEq)]
+pub enum UndoStep {
+    /// The tower a delete removed, as it was.
+    Delete(LandmarkRecord),
+    /// An import: every tower it wrote, as it was before (`None`: it was new).
+    Import {
+        file: String,
+        before: Vec<(String, Option<LandmarkRecord>)>,
+    },
+}
+
+impl UndoStep {
+    pub fn label(&self) -> String {
+        match self {
+            UndoStep::Delete(record) => format!("Undo delete of {}", record.id),
+            UndoStep::Import { file, before } => {
+                format!("Undo import of {file} ({} towers)", before.len())
+            }
+        }
+    }
+
+    fn hint(&self) -> &'static str {
+        match self {
+            UndoStep::Delete(_) => "put the tower back as it was, live to every edge",
+            UndoStep::Import { .. } => {
+                "put every tower the import wrote back as it was (removing the new ones), in one transaction, live to every edge"
+            }
+        }
+    }
 }
 
 /// An import held back until the operator confirms it: towers in it look
@@ -176,8 +211,8 @@ pub struct EditorState {
     pub editing_revision: Option<u64>,
     /// The tower the delete dialog asks about.
     pub confirm_delete: Option<String>,
-    /// The tower the last delete removed, as it was: what "Undo delete" restores.
-    pub undo_delete: Option<LandmarkRecord>,
+    /// Deletes and imports that can be taken back, the last one last.
+    pub undo: Vec<UndoStep>,
     /// Fields typed into since the form was (re)filled: an empty one is
     /// flagged "required" only after the operator has been in it.
     pub touched: BTreeSet<&'static str>,
@@ -201,7 +236,7 @@ impl Default for EditorState {
             editing: None,
             editing_revision: None,
             confirm_delete: None,
-            undo_delete: None,
+            undo: Vec::new(),
             touched: BTreeSet::new(),
             message: None,
             io_path: String::new(),
@@ -455,14 +490,10 @@ fn form(
             text,
         );
     }
-    if let Some(gone) = state.undo_delete.clone()
-        && ui
-            .button(format!("Undo delete of {}", gone.id))
-            .on_hover_text("put the tower back as it was, live to every edge")
-            .clicked()
+    if let Some(step) = state.undo.last()
+        && ui.button(step.label()).on_hover_text(step.hint()).clicked()
     {
-        state.undo_delete = None;
-        return Some(EditorAction::Restore(Box::new(gone)));
+        return Some(EditorAction::Undo);
     }
     action.or_else(|| delete_dialog(ui, state, records))
 }

@@ -34,6 +34,33 @@ pub struct MapState {
     follow_half_width_m: Option<f64>,
     /// Where the pointer is over the map (east, north), if it is.
     pub cursor: Option<[f64; 2]>,
+    /// Whether the first view was fitted to the towers.
+    fitted: bool,
+}
+
+/// The first view: the towers within [`crate::app::MAP_CORE_RADIUS_M`] of the
+/// origin (the towers' median) with a margin, so one tower thousands of km
+/// off does not zoom the map out to a continent. `None` without towers.
+pub fn first_view(towers: &[MapTower]) -> Option<([f64; 2], [f64; 2])> {
+    let core = towers
+        .iter()
+        .filter(|t| t.en[0].hypot(t.en[1]) <= crate::app::MAP_CORE_RADIUS_M);
+    let (mut min, mut max) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for t in core {
+        for k in 0..2 {
+            min[k] = min[k].min(t.en[k]);
+            max[k] = max[k].max(t.en[k]);
+        }
+    }
+    if !min[0].is_finite() {
+        return None;
+    }
+    let half = (0.5 * (max[0] - min[0]).max(max[1] - min[1]) * 1.15).max(200.0);
+    let centre = [0.5 * (min[0] + max[0]), 0.5 * (min[1] + max[1])];
+    Some((
+        [centre[0] - half, centre[1] - half],
+        [centre[0] + half, centre[1] + half],
+    ))
 }
 
 /// The narrowest and widest followed views, half-widths in metres.
@@ -147,6 +174,12 @@ pub fn show(
             }
             draw_towers(plot, towers);
             draw_fleet(plot, fleet, towers, selected, now_s);
+            if !state.fitted
+                && let Some((min, max)) = first_view(towers)
+            {
+                plot.set_plot_bounds(PlotBounds::from_min_max(min, max));
+                state.fitted = true;
+            }
             if let Some(center) = followed {
                 let half = state
                     .follow_half_width_m
@@ -352,6 +385,44 @@ pub fn heading_line(at: [f64; 2], yaw_rad: f64) -> Vec<[f64; 2]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn one_tower_thousands_of_km_off_moves_neither_origin_nor_first_view() {
+        let mut records = crate::test_support::towers();
+        records.extend(crate::test_support::towers().into_iter().map(|mut r| {
+            r.id = format!("{}x", r.id);
+            r.lon_deg += 0.002;
+            r
+        }));
+        let good = crate::app::map_datum(&records).expect("datum");
+        let mut typo = records[0].clone();
+        typo.id = "T9".into();
+        typo.lat_deg = 4.52; // a digit short: about 2,900 km south
+        typo.ground_elev_m = -400.0;
+        records.push(typo);
+        let datum = crate::app::map_datum(&records).expect("datum");
+        let moved = good.to_enu(&datum.origin);
+        assert!(moved.x.hypot(moved.y) < 200.0, "origin moved {moved:?}");
+        assert!((datum.origin.height_m - 25.0).abs() < 1e-9);
+        let towers: Vec<MapTower> = records
+            .iter()
+            .map(|r| MapTower {
+                id: r.id.clone(),
+                tower_type: r.tower_type,
+                en: {
+                    let p = datum.to_enu(&towernav_geometry::Geodetic {
+                        lat_deg: r.lat_deg,
+                        lon_deg: r.lon_deg,
+                        height_m: 0.0,
+                    });
+                    [p.x, p.y]
+                },
+            })
+            .collect();
+        let (min, max) = first_view(&towers).expect("a view");
+        assert!(max[0] - min[0] < 2_000.0, "{min:?} {max:?}");
+        assert!(max[1] - min[1] < 2_000.0, "{min:?} {max:?}");
+    }
     use proptest::prelude::*;
 
     #[test]

@@ -23,7 +23,7 @@ pub use error::{DbError, ImportError, RowProblem};
 pub use formats::{OSM_TYPE_TAG, OsmMapping, export_geojson, export_osm_xml};
 pub use import::{
     CheckKind, Format, ImportOptions, ImportReport, Parsed, Warning, checks_by_kind, import_csv,
-    import_file, import_parsed, likely_mistakes,
+    import_file, import_parsed, likely_mistakes, parse_file,
 };
 pub use load::load_towers;
 pub use store::{Author, Expect, HistoryEntry, LandmarkDb};

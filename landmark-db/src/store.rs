@@ -285,24 +285,46 @@ impl LandmarkDb {
     /// Removes a tower; `Ok(None)` if there was none by that id.
     pub fn remove(&mut self, id: &str, author: &Author) -> Result<Option<u64>, DbError> {
         let path = self.path.clone();
-        let sql = |source| DbError::from_sqlite(&path, source);
         let tx = self.write()?;
-        if tx
-            .execute("DELETE FROM landmarks WHERE id = ?1", [id])
-            .map_err(sql)?
-            == 0
-        {
-            return Ok(None);
+        let revision = remove_in(&tx, &path, id, author)?;
+        if revision.is_some() {
+            tx.commit().map_err(|s| DbError::from_sqlite(&path, s))?;
         }
-        let revision = current_revision(&tx).map_err(sql)? + 1;
-        tx.execute(
-            "INSERT INTO changes (revision, id, op, record, updated_at_unix_s, updated_by) VALUES (?1, ?2, 'remove', NULL, ?3, ?4)",
-            params![revision as i64, id, author.at_unix_s, author.by],
-        )
-        .map_err(sql)?;
-        set_revision(&tx, revision).map_err(sql)?;
-        tx.commit().map_err(sql)?;
-        Ok(Some(revision))
+        Ok(revision)
+    }
+
+    /// Puts the towers of `before` back as they were, in one transaction: a
+    /// record is written again, `None` removes the tower (it did not exist).
+    /// What undoes an import as a whole. Returns the last revision.
+    pub fn revert(
+        &mut self,
+        before: &[(String, Option<LandmarkRecord>)],
+        author: &Author,
+    ) -> Result<u64, DbError> {
+        for record in before.iter().filter_map(|(_, r)| r.as_ref()) {
+            validate(record)?;
+        }
+        let path = self.path.clone();
+        let tx = self.write()?;
+        for (id, record) in before {
+            match record {
+                Some(record) => {
+                    write_in(
+                        &tx,
+                        &path,
+                        std::slice::from_ref(record),
+                        Expect::Any,
+                        author,
+                    )?;
+                }
+                None => {
+                    remove_in(&tx, &path, id, author)?;
+                }
+            }
+        }
+        let revision = current_revision(&tx).map_err(|s| DbError::from_sqlite(&path, s))?;
+        tx.commit().map_err(|s| DbError::from_sqlite(&path, s))?;
+        Ok(revision)
     }
 
     pub fn get(&self, id: &str) -> Result<Option<LandmarkRecord>, DbError> {
@@ -571,6 +593,31 @@ fn get_in(tx: &Transaction<'_>, path: &str, id: &str) -> Result<Option<LandmarkR
     raw.map(|raw| decode(path, raw)).transpose()
 }
 
+/// Removes `id` inside `tx` with its change-log entry; `None` if absent.
+fn remove_in(
+    tx: &Transaction<'_>,
+    path: &str,
+    id: &str,
+    author: &Author,
+) -> Result<Option<u64>, DbError> {
+    let sql = |source| DbError::from_sqlite(path, source);
+    if tx
+        .execute("DELETE FROM landmarks WHERE id = ?1", [id])
+        .map_err(sql)?
+        == 0
+    {
+        return Ok(None);
+    }
+    let revision = current_revision(tx).map_err(sql)? + 1;
+    tx.execute(
+        "INSERT INTO changes (revision, id, op, record, updated_at_unix_s, updated_by) VALUES (?1, ?2, 'remove', NULL, ?3, ?4)",
+        params![revision as i64, id, author.at_unix_s, author.by],
+    )
+    .map_err(sql)?;
+    set_revision(tx, revision).map_err(sql)?;
+    Ok(Some(revision))
+}
+
 fn current_revision(tx: &Transaction<'_>) -> rusqlite::Result<u64> {
     tx.query_row("SELECT value FROM meta WHERE key = 'revision'", [], |r| {
         r.get::<_, i64>(0)
@@ -590,6 +637,29 @@ fn set_revision(tx: &Transaction<'_>, revision: u64) -> rusqlite::Result<()> {
 mod tests {
     use super::*;
     use crate::fixtures::surveyed as tower;
+
+    #[test]
+    fn revert_puts_towers_back_and_removes_new_ones_in_one_go() {
+        let mut db = LandmarkDb::open_in_memory().expect("db");
+        let author = Author::now("op");
+        let a = tower("A1", 30.0);
+        db.upsert(&a, &author).expect("a");
+        let before = vec![
+            ("A1".to_owned(), db.get("A1").expect("get")),
+            ("N1".to_owned(), None),
+        ];
+        let mut moved = a.clone();
+        moved.lat_deg += 0.01;
+        db.upsert_all(&[moved, tower("N1", 32.0)], &author)
+            .expect("import");
+        db.revert(&before, &author).expect("revert");
+        let back = db.get("A1").expect("get").expect("A1 is there");
+        assert_eq!(back.lat_deg, a.lat_deg);
+        assert!(db.get("N1").expect("get").is_none());
+        // The edges hear the undo as changes, after the import's.
+        let ops: Vec<_> = db.changes_since(3).expect("changes");
+        assert_eq!(ops.len(), 2, "{ops:?}");
+    }
 
     fn surveyor() -> Author {
         Author {
