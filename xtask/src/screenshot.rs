@@ -1,7 +1,9 @@
 //! `cargo xtask screenshot`: the ground station's real window under Xvfb,
 //! connected to a demo edge on loopback: `docs/ground-station.png` live,
 //! `docs/link-lost.png` after the edge was stopped, `docs/landmark-editor.png`
-//! on the Landmarks tab.
+//! on the Landmarks tab, and `docs/fix-lost-link-lost.png`: two UAVs, one
+//! flying away from the towers (its link up, its fix lost) and one whose edge
+//! was stopped (its link lost).
 //!
 //! Xvfb comes from Debian's `xvfb` package, installed when missing.
 
@@ -12,8 +14,20 @@ use anyhow::{Context, bail};
 
 use crate::{build_release, run, target_dir};
 
-/// A loopback port of its own, so a running demo (7447) is not disturbed.
+/// Loopback ports of their own, so a running demo (7447) is not disturbed.
 const EDGE_ENDPOINT: &str = "tcp/127.0.0.1:17480";
+const SECOND_EDGE_ENDPOINT: &str = "tcp/127.0.0.1:17481";
+
+/// One demo edge of a screenshot.
+struct Edge<'a> {
+    uav: &'a str,
+    /// A flight preset or plan file.
+    flight: &'a str,
+    speed: f64,
+    endpoint: &'a str,
+    /// Stopped after this many seconds (never: `INFINITY`).
+    stop_after_s: f64,
+}
 
 pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     let bin = build_release(
@@ -37,14 +51,53 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(root.join("docs"))?;
     let docs = root.join("docs");
-    // Live, then with the edge stopped half-way (the link-lost state), then the editor.
-    for (name, tab, edge_for_s, total_s) in [
-        ("ground-station.png", "map", f64::INFINITY, seconds),
-        ("link-lost.png", "map", seconds, seconds + 8.0),
-        ("landmark-editor.png", "landmarks", f64::INFINITY, seconds),
-    ] {
+    let leave = root.join("tests").join("fixtures").join("leave-and-return.toml");
+    let leave = leave.display().to_string();
+    let one = |stop_after_s| {
+        vec![Edge {
+            uav: "uav1",
+            flight: "paper-path-1",
+            speed: 1.0,
+            endpoint: EDGE_ENDPOINT,
+            stop_after_s,
+        }]
+    };
+    // Live, then with the edge stopped half-way (the link-lost state), then
+    // the editor, then a lost fix (link up) beside a lost link.
+    let shots: [(&str, &str, Vec<Edge>, f64); 4] = [
+        ("ground-station.png", "map", one(f64::INFINITY), seconds),
+        ("link-lost.png", "map", one(seconds), seconds + 8.0),
+        ("landmark-editor.png", "landmarks", one(f64::INFINITY), seconds),
+        (
+            "fix-lost-link-lost.png",
+            "map",
+            vec![
+                // At 4x it is far north of the towers, fix lost, by about 16 s.
+                Edge {
+                    uav: "uav1",
+                    flight: &leave,
+                    speed: 4.0,
+                    endpoint: EDGE_ENDPOINT,
+                    stop_after_s: f64::INFINITY,
+                },
+                Edge {
+                    uav: "uav2",
+                    flight: "paper-path-1",
+                    speed: 1.0,
+                    endpoint: SECOND_EDGE_ENDPOINT,
+                    stop_after_s: 10.0,
+                },
+            ],
+            22.0,
+        ),
+    ];
+    for (name, tab, edges, total_s) in shots {
         let out = docs.join(name);
-        let edge = start_edge(&bin, &towers)?;
+        let mut running = Vec::new();
+        for edge in &edges {
+            running.push((start_edge(&bin, &towers, edge)?, edge.stop_after_s));
+        }
+        let connect = edges.iter().flat_map(|e| ["--connect", e.endpoint]);
         let gs = Command::new("xvfb-run")
             .args(["-a", "-s", "-screen 0 1600x900x24"])
             .arg(bin.join("towernav-gs"))
@@ -52,50 +105,49 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
             .arg(&db)
             .arg("--import")
             .arg(&towers)
-            .args(["--connect", EDGE_ENDPOINT, "--tab", tab])
+            .args(connect)
+            .args(["--tab", tab])
             .arg("--screenshot")
             .arg(&out)
             .args(["--quit-after-s", &total_s.to_string()])
             .spawn()
             .context("starting xvfb-run (the xvfb package)")?;
-        shoot(edge, gs, edge_for_s, &out)?;
+        shoot(running, gs, &out)?;
     }
     Ok(())
 }
 
-/// The demo edge, flying paper path 1 in real time with the oracle detector.
-fn start_edge(bin: &Path, towers: &Path) -> anyhow::Result<Child> {
+/// A demo edge with the oracle detector.
+fn start_edge(bin: &Path, towers: &Path, edge: &Edge) -> anyhow::Result<Child> {
     Command::new(bin.join("towernav-edge"))
-        .args([
-            "demo",
-            "--detector",
-            "oracle",
-            "--speed",
-            "1",
-            "--flight",
-            "paper-path-1",
-            "--listen",
-            EDGE_ENDPOINT,
-        ])
+        .args(["demo", "--detector", "oracle", "--uav", edge.uav])
+        .args(["--speed", &edge.speed.to_string()])
+        .args(["--flight", edge.flight, "--listen", edge.endpoint])
         .arg("--landmarks")
         .arg(towers)
         .stdout(Stdio::null())
         .spawn()
-        .context("starting the demo edge")
+        .with_context(|| format!("starting the demo edge of {}", edge.uav))
 }
 
-/// Stops the edge after `edge_for_s` (never, for a live picture: the window
+/// Stops each edge after its time (never, for a live picture: the window
 /// starts later than this clock), waits for the window's screenshot.
-fn shoot(mut edge: Child, mut gs: Child, edge_for_s: f64, out: &Path) -> anyhow::Result<()> {
+fn shoot(mut edges: Vec<(Child, f64)>, mut gs: Child, out: &Path) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
+    let stop = |edge: &mut Child| {
+        let _ = edge.kill();
+        let _ = edge.wait();
+    };
     loop {
-        if started.elapsed().as_secs_f64() >= edge_for_s {
-            let _ = edge.kill();
-            let _ = edge.wait();
+        for (edge, stop_after_s) in &mut edges {
+            if started.elapsed().as_secs_f64() >= *stop_after_s {
+                stop(edge);
+            }
         }
         if let Some(status) = gs.try_wait()? {
-            let _ = edge.kill();
-            let _ = edge.wait();
+            for (edge, _) in &mut edges {
+                stop(edge);
+            }
             if !status.success() {
                 bail!("the ground station exited with {status}");
             }
