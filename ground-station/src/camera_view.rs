@@ -156,7 +156,7 @@ pub fn show(
                 .find(|t| t.tower_id.as_ref() == Some(choice) && t.track_id != pick.track_id)
                 .map(|t| t.track_id)
         });
-        let (send, cancel) = picker(ui, pick, towers, corrections, holder);
+        let (send, cancel) = picker(ui, pick, towers, corrections, holder, link.is_live());
         let done = send.is_some() || cancel;
         if let Some(tower) = send {
             action = Some(CameraAction::Send {
@@ -275,6 +275,9 @@ fn screen_box(track: &Track, frame: Rect, scale: f64) -> Rect {
 /// Where each box's label goes (its bottom-left corner): just above the box,
 /// or, where that would print over a label already placed (towers bunched
 /// near the horizon), stacked higher until it is clear.
+/// The least horizontal gap between two labels on one row, pixels.
+pub const LABEL_GAP_PX: f32 = 6.0;
+
 pub fn place_labels(boxes: &[Rect], sizes: &[egui::Vec2]) -> Vec<egui::Pos2> {
     let mut order: Vec<usize> = (0..boxes.len()).collect();
     // Lowest boxes first: the nearest towers keep their labels closest.
@@ -286,7 +289,10 @@ pub fn place_labels(boxes: &[Rect], sizes: &[egui::Vec2]) -> Vec<egui::Pos2> {
         let mut bottom_left = boxes[i].left_top() - vec2(0.0, 2.0);
         for _ in 0..boxes.len() {
             let label = Rect::from_min_size(bottom_left - vec2(0.0, size.y), size);
-            match placed.iter().find(|p| p.intersects(label)) {
+            // Labels side by side keep a gap, so "T16 C4" and "T4 A4" never
+            // read as one "T16 C4T4 A4".
+            let padded = label.expand2(vec2(LABEL_GAP_PX, 0.0));
+            match placed.iter().find(|p| p.intersects(padded)) {
                 Some(hit) => bottom_left.y = hit.top() - 1.0,
                 None => break,
             }
@@ -345,14 +351,37 @@ fn track_box(ui: &mut egui::Ui, track: &Track, r: Rect, look: BoxLook) -> bool {
         Stroke::new(stroke, color),
         egui::StrokeKind::Outside,
     );
-    ui.painter().text(
-        label_at,
-        egui::Align2::LEFT_BOTTOM,
-        &label,
-        egui::FontId::proportional(12.0),
-        color,
+    // On a dark chip: each label reads as one, over sky or ground.
+    let galley = ui
+        .painter()
+        .layout_no_wrap(label, egui::FontId::proportional(12.0), color);
+    let chip = Rect::from_min_size(label_at - vec2(0.0, galley.size().y), galley.size());
+    ui.painter().rect_filled(
+        chip.expand2(vec2(2.0, 0.0)),
+        2.0,
+        Color32::from_black_alpha(160),
     );
+    ui.painter().galley(chip.min, galley, color);
     response.clicked()
+}
+
+/// What Enter in the search box picks: the tower whose id is the text
+/// (ignoring case), else the only one whose id contains it.
+pub fn enter_pick(search: &str, towers: &[MapTower]) -> Option<String> {
+    let needle = search.trim().to_lowercase();
+    if needle.is_empty() {
+        return None;
+    }
+    if let Some(t) = towers.iter().find(|t| t.id.to_lowercase() == needle) {
+        return Some(t.id.clone());
+    }
+    let mut matches = towers
+        .iter()
+        .filter(|t| t.id.to_lowercase().contains(&needle));
+    match (matches.next(), matches.next()) {
+        (Some(only), None) => Some(only.id.clone()),
+        _ => None,
+    }
 }
 
 /// The tower chooser: search by id; returns (what to send, cancelled).
@@ -362,6 +391,7 @@ fn picker(
     towers: &[MapTower],
     corrections: &Corrections,
     holder: Option<u64>,
+    live: bool,
 ) -> (Option<Option<String>>, bool) {
     ui.label(format!(
         "Correct track {} (now {})",
@@ -371,10 +401,24 @@ fn picker(
     if corrections.pending_for(&pick.uav, pick.track_id).is_some() {
         ui.colored_label(Color32::YELLOW, "a correction of this track is pending");
     }
+    if !live {
+        ui.colored_label(
+            Color32::RED,
+            "this frame is old: the link is not live, so a correction waits for the \
+             edge and may time out; check the track when it is back",
+        );
+    }
     ui.horizontal(|ui| {
         let name = ui.label("Tower id");
-        ui.add(egui::TextEdit::singleline(&mut pick.search).hint_text("search"))
+        let search = ui
+            .add(egui::TextEdit::singleline(&mut pick.search).hint_text("search, Enter picks"))
             .labelled_by(name.id);
+        if search.lost_focus()
+            && ui.input(|i| i.key_pressed(egui::Key::Enter))
+            && let Some(id) = enter_pick(&pick.search, towers)
+        {
+            pick.choice = Some(id);
+        }
     });
     let needle = pick.search.to_lowercase();
     egui::ScrollArea::vertical()
@@ -526,5 +570,41 @@ mod tests {
             at[0].y <= 199.0 && at[1].y <= 199.0,
             "above their boxes: {at:?}"
         );
+    }
+
+    #[test]
+    fn labels_on_one_row_keep_a_gap() {
+        // Two boxes whose labels, left-aligned over them, would touch end to end.
+        let boxes = [
+            Rect::from_min_max(pos2(100.0, 200.0), pos2(110.0, 230.0)),
+            Rect::from_min_max(pos2(142.0, 200.0), pos2(152.0, 230.0)),
+        ];
+        let sizes = [vec2(40.0, 14.0); 2];
+        let at = place_labels(&boxes, &sizes);
+        let rects: Vec<Rect> = at
+            .iter()
+            .zip(&sizes)
+            .map(|(p, s)| Rect::from_min_size(*p - vec2(0.0, s.y), *s))
+            .collect();
+        let same_row = (rects[0].top() - rects[1].top()).abs() < 1.0;
+        let gap = (rects[1].left() - rects[0].right()).max(rects[0].left() - rects[1].right());
+        assert!(
+            !same_row || gap >= LABEL_GAP_PX,
+            "labels run together: {rects:?}"
+        );
+    }
+
+    #[test]
+    fn enter_picks_the_exact_id_or_the_only_match() {
+        let tower = |id: &str| MapTower {
+            id: id.into(),
+            tower_type: towernav_protocol::TowerType::A,
+            en: [0.0, 0.0],
+        };
+        let towers = [tower("A1"), tower("A12"), tower("B4")];
+        assert_eq!(enter_pick("a1", &towers).as_deref(), Some("A1"));
+        assert_eq!(enter_pick("b", &towers).as_deref(), Some("B4"));
+        assert_eq!(enter_pick("A", &towers), None, "two match: no guess");
+        assert_eq!(enter_pick("  ", &towers), None);
     }
 }

@@ -91,6 +91,9 @@ pub struct UavView {
     pub trail: VecDeque<[f64; 2]>,
     /// The simulator's truth, east/north in the map frame.
     pub truth_trail: VecDeque<[f64; 2]>,
+    /// The last truth's frame number: one lower than it is a restarted edge,
+    /// whose truth starts a new line.
+    pub last_truth_seq: Option<u64>,
     pub status: Option<StatusHeartbeat>,
     /// The last tracks reports, newest last: the preview is drawn with the one of its frame.
     pub recent_tracks: VecDeque<TrackReport>,
@@ -221,7 +224,14 @@ impl Fleet {
             }
             NetEvent::Truth(t) => {
                 let en = self.en(t.lat_deg, t.lon_deg, t.alt_m);
-                push_bounded(&mut self.uavs.entry(t.uav).or_default().truth_trail, en);
+                let view = self.uavs.entry(t.uav).or_default();
+                if view.last_truth_seq.is_some_and(|last| t.seq < last)
+                    && !view.truth_trail.is_empty()
+                {
+                    push_bounded(&mut view.truth_trail, TRAIL_BREAK);
+                }
+                view.last_truth_seq = Some(t.seq);
+                push_bounded(&mut view.truth_trail, en);
             }
             NetEvent::Tracks(t) => {
                 let uav = t.uav.clone();
@@ -248,7 +258,16 @@ impl Fleet {
             }
             NetEvent::Rejected { key, error } => self.rejected.push((key, error)),
             NetEvent::Notice(text) => self.notices.push(text),
-            NetEvent::Recording(path) => self.recording = path.map(|p| (p, now_s)),
+            NetEvent::Recording(path) => {
+                // A recording that started answers the earlier failures to
+                // record: they no longer stand beside a running REC.
+                if path.is_some() {
+                    self.notices.retain(|n| {
+                        !n.starts_with("cannot record") && !n.starts_with("recording stopped")
+                    });
+                }
+                self.recording = path.map(|p| (p, now_s));
+            }
             NetEvent::Failed(e) => self.network_error = Some(e),
         }
     }
@@ -462,5 +481,46 @@ mod tests {
             0.0,
         );
         assert_eq!(fleet.rejected.len(), 1);
+    }
+
+    #[test]
+    fn a_recording_that_starts_clears_the_earlier_cannot_record() {
+        let mut fleet = fleet();
+        fleet.apply(NetEvent::Notice("cannot record: disk full".into()), 1.0);
+        fleet.apply(NetEvent::Notice("sent correction".into()), 1.5);
+        fleet.apply(NetEvent::Recording(Some("a.mcap".into())), 2.0);
+        assert_eq!(fleet.notices, vec!["sent correction".to_owned()]);
+    }
+
+    #[test]
+    fn a_restarted_edges_truth_starts_a_new_line() {
+        let mut fleet = fleet();
+        let truth = |seq: u64, lat: f64| {
+            NetEvent::Truth(towernav_protocol::TruthPose {
+                uav: NodeId::new("u1").expect("valid"),
+                time_s: seq as f64 / 30.0,
+                seq,
+                lat_deg: lat,
+                lon_deg: 114.36,
+                alt_m: 30.0,
+            })
+        };
+        fleet.apply(truth(100, 30.52), 1.0);
+        fleet.apply(truth(101, 30.521), 1.1);
+        fleet.apply(truth(0, 30.5), 2.0);
+        let trail: Vec<[f64; 2]> = fleet
+            .uavs
+            .values()
+            .next()
+            .expect("u1")
+            .truth_trail
+            .iter()
+            .copied()
+            .collect();
+        assert_eq!(trail.len(), 4, "{trail:?}");
+        assert!(
+            trail[2][0].is_nan(),
+            "no break before the restart: {trail:?}"
+        );
     }
 }

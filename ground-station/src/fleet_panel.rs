@@ -122,6 +122,9 @@ fn uav_header(
                 RichText::new("late").color(Color32::ORANGE),
             ),
             (_, Some(true)) => (Color32::LIGHT_GREEN, RichText::new("online")),
+            // Messages flow but no presence token was seen (a replay records
+            // none, a router may hold it back): it is heard, so say that.
+            (Link::Live, _) => (Color32::LIGHT_GREEN, RichText::new("heard")),
             (_, _) => (Color32::GRAY, RichText::new("presence unknown")),
         };
         let (r, _) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());

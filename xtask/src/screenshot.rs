@@ -51,7 +51,10 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(root.join("docs"))?;
     let docs = root.join("docs");
-    let leave = root.join("tests").join("fixtures").join("leave-and-return.toml");
+    let leave = root
+        .join("tests")
+        .join("fixtures")
+        .join("leave-and-return.toml");
     let leave = leave.display().to_string();
     let one = |stop_after_s| {
         vec![Edge {
@@ -67,7 +70,12 @@ pub fn screenshot(root: &Path, seconds: f64) -> anyhow::Result<()> {
     let shots: [(&str, &str, Vec<Edge>, f64); 4] = [
         ("ground-station.png", "map", one(f64::INFINITY), seconds),
         ("link-lost.png", "map", one(seconds), seconds + 8.0),
-        ("landmark-editor.png", "landmarks", one(f64::INFINITY), seconds),
+        (
+            "landmark-editor.png",
+            "landmarks",
+            one(f64::INFINITY),
+            seconds,
+        ),
         (
             "fix-lost-link-lost.png",
             "map",
