@@ -58,6 +58,8 @@ fn main() -> anyhow::Result<()> {
                 .unwrap_or_else(|_| "warn,towernav=info".into()),
         )
         .with_writer(std::io::stderr)
+        // Colour codes only on a terminal: under systemd the journal gets plain text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let cli = Cli::parse();
     let args = match cli.command {

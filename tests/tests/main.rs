@@ -1,7 +1,9 @@
 //! The cross-crate tests, one module per concern, in one binary.
 
+mod aarch64;
 mod autopilot_link;
 mod coco_start;
+mod debian_package;
 mod detector;
 mod edge_daemon;
 mod fleet;

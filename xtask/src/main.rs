@@ -6,6 +6,8 @@ use std::process::Command;
 use anyhow::{Context, bail};
 
 mod bench_edge;
+mod cross;
+mod deb;
 mod screenshot;
 mod system_packages;
 mod train;
@@ -117,6 +119,20 @@ enum Task {
     /// Build the Zenoh router matching the project's Zenoh into .zenohd/
     /// (`.zenohd/bin/zenohd -c router.json5`; see `towernav-fleet router-config`).
     Zenohd,
+    /// Cross-build the onboard binaries (edge, towernav-db, towernav-fleet)
+    /// for a companion computer, with ONNX Runtime's library for it.
+    Cross {
+        /// The architecture: aarch64.
+        #[arg(default_value = "aarch64")]
+        arch: String,
+    },
+    /// The onboard binaries, models, ONNX Runtime, config and systemd unit as
+    /// a Debian package in target/deb/.
+    Deb {
+        /// The Debian architecture: amd64 or arm64.
+        #[arg(default_value = "amd64")]
+        arch: String,
+    },
 }
 
 #[derive(clap::Args)]
@@ -168,7 +184,13 @@ impl Task {
             Self::Screenshot { .. } => vec![Xvfb],
             // The model card scores the finished run with the edge's detector.
             Self::Train { card: true, .. } => vec![OnnxRuntime],
-            Self::Gs | Self::Train { .. } | Self::Quantize | Self::SetupOrt | Self::Zenohd => {
+            Self::Gs
+            | Self::Train { .. }
+            | Self::Quantize
+            | Self::SetupOrt
+            | Self::Zenohd
+            | Self::Cross { .. }
+            | Self::Deb { .. } => {
                 vec![]
             }
         }
@@ -263,6 +285,8 @@ fn main() -> anyhow::Result<()> {
         Task::Quantize => train::quantize(&root),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
         Task::Zenohd => zenohd::ensure_zenohd(&root).map(|bin| println!("{}", bin.display())),
+        Task::Cross { arch } => cross::cross(&root, &arch).map(|_| ()),
+        Task::Deb { arch } => deb::deb(&root, &arch).map(|_| ()),
         Task::Train {
             foreground,
             ship,
@@ -318,11 +342,17 @@ fn main() -> anyhow::Result<()> {
 /// `.ort/lib/libonnxruntime.so` under the workspace, fetched once from the
 /// `onnxruntime` wheel on the Python package index (pip, no other network).
 fn ensure_onnxruntime(root: &Path) -> anyhow::Result<PathBuf> {
-    let lib = root.join(".ort").join("lib").join("libonnxruntime.so");
+    onnxruntime_from_wheel(&root.join(".ort"), &[])
+}
+
+/// `dir/lib/libonnxruntime.so` from the `onnxruntime` wheel pip picks with
+/// `pip_args` (a `--platform` for another architecture's), fetched once.
+fn onnxruntime_from_wheel(dir: &Path, pip_args: &[&str]) -> anyhow::Result<PathBuf> {
+    let lib = dir.join("lib").join("libonnxruntime.so");
     if lib.exists() {
         return Ok(lib);
     }
-    let wheels = root.join(".ort").join("wheel");
+    let wheels = dir.join("wheel");
     std::fs::create_dir_all(lib.parent().context("lib has a parent")?)?;
     run(Command::new("python3")
         .args([
@@ -332,9 +362,10 @@ fn ensure_onnxruntime(root: &Path) -> anyhow::Result<PathBuf> {
             "--quiet",
             "--no-deps",
             "--only-binary=:all:",
-            &format!("onnxruntime=={ONNXRUNTIME_VERSION}"),
-            "-d",
         ])
+        .args(pip_args)
+        .arg(format!("onnxruntime=={ONNXRUNTIME_VERSION}"))
+        .arg("-d")
         .arg(&wheels))?;
     // Unpack only the shared library from the wheel (a zip).
     let script = "import sys, zipfile, glob, shutil\n\
@@ -372,9 +403,14 @@ fn build_release(root: &Path, packages: &[&str]) -> anyhow::Result<PathBuf> {
 }
 
 fn cargo(root: &Path, args: &[&str]) -> anyhow::Result<()> {
+    cargo_with(root, args, &[])
+}
+
+fn cargo_with(root: &Path, args: &[&str], env: &[(&str, &str)]) -> anyhow::Result<()> {
     run(
         Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
             .args(args)
+            .envs(env.iter().copied())
             .current_dir(root),
     )
 }
@@ -482,11 +518,19 @@ fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
     // lint the onboard build, which has none of it, on its own. Its
     // dependencies are the workspace's (build-unify/), so only it compiles.
     run(clippy.cargo(root).args(["build", "-p", "towernav-edge"]))?;
+    // The onboard binaries for aarch64, which a test runs under qemu-user,
+    // and both architectures' Debian packages, which a test unpacks.
+    let aarch64 = cross::cross(root, "aarch64")?;
+    system_packages::ensure_program("qemu-aarch64", "qemu-user")?;
+    let debs = std::env::join_paths([deb::deb(root, "amd64")?, deb::deb(root, "arm64")?])?;
     run(clippy
         .cargo(root)
         .args(["test", "--workspace", "--no-fail-fast"])
         .env("ORT_DYLIB_PATH", ort)
-        .env("TOWERNAV_PYTHONPATH", root.join(".pydeps")))
+        .env("TOWERNAV_PYTHONPATH", root.join(".pydeps"))
+        .env("TOWERNAV_AARCH64_BIN", &aarch64.bin)
+        .env("TOWERNAV_AARCH64_ORT", &aarch64.ort)
+        .env("TOWERNAV_DEBS", debs))
 }
 
 /// clippy-driver as the compiler of the workspace's own crates, with

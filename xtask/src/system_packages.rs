@@ -20,6 +20,18 @@ pub fn ensure_program(program: &str, package: &str) -> anyhow::Result<()> {
     if have(program) {
         return Ok(());
     }
+    install(program, package)
+}
+
+/// Installs a Debian package when a file it holds is missing (root only).
+pub fn ensure_file(path: &str, package: &str) -> anyhow::Result<()> {
+    if std::path::Path::new(path).exists() {
+        return Ok(());
+    }
+    install(path, package)
+}
+
+fn install(program: &str, package: &str) -> anyhow::Result<()> {
     if !have("apt-get") {
         bail!("`{program}` is missing; install the `{package}` package");
     }

@@ -1,0 +1,132 @@
+//! The onboard build for a 64-bit ARM companion computer, run here under
+//! Debian's qemu-user: `cargo xtask cross aarch64` builds it and `cargo xtask
+//! test` hands this test its folder (`TOWERNAV_AARCH64_BIN`) and ONNX
+//! Runtime's aarch64 library (`TOWERNAV_AARCH64_ORT`). The aarch64 daemon
+//! replays a short rendered flight from its images, and its poses are
+//! compared with the x86-64 daemon's on the same frames.
+//!
+//! Run alone (`cargo test`) without those variables it says so and passes:
+//! the cross toolchain is the xtask's to install, not a test's.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The aarch64 C library and loader from Debian's cross packages.
+const SYSROOT: &str = "/usr/aarch64-linux-gnu";
+/// Frames replayed: enough for the filter to settle, few enough for qemu.
+const FRAMES: &str = "60";
+
+fn binary(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("the test's path");
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/deps/<test>")
+        .join(name)
+}
+
+fn run(mut cmd: Command) -> String {
+    let out = cmd.output().expect("the command starts");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "{cmd:?} failed:\n{text}");
+    text
+}
+
+/// (seq, east, north) of each estimate the daemon wrote to `jsonl`, metres.
+fn poses(jsonl: &Path) -> Vec<(u64, f64, f64)> {
+    let text = std::fs::read_to_string(jsonl).expect("the daemon's JSON lines");
+    text.lines()
+        .map(|line| {
+            let p: serde_json::Value = serde_json::from_str(line).expect("a JSON line");
+            let lat = p["lat_deg"].as_f64().expect("lat");
+            let lon = p["lon_deg"].as_f64().expect("lon");
+            // Metres on the spot: the flight spans 60 m.
+            let north = lat * 111_320.0;
+            let east = lon * 111_320.0 * lat.to_radians().cos();
+            (p["seq"].as_u64().expect("seq"), east, north)
+        })
+        .collect()
+}
+
+#[test]
+fn the_aarch64_daemon_under_qemu_replays_a_flight_as_the_x86_64_one_does() {
+    let (Some(bin), Some(ort)) = (
+        std::env::var_os("TOWERNAV_AARCH64_BIN"),
+        std::env::var_os("TOWERNAV_AARCH64_ORT"),
+    ) else {
+        eprintln!(
+            "skipped: no aarch64 build given (`cargo xtask test` builds one with \
+             `cargo xtask cross aarch64` and sets TOWERNAV_AARCH64_BIN and TOWERNAV_AARCH64_ORT)"
+        );
+        return;
+    };
+    let edge_arm = PathBuf::from(bin).join("towernav-edge");
+    // An ELF for ARM64 (e_machine 0xB7), not the host's binary by mistake.
+    let header = std::fs::read(&edge_arm).expect("the aarch64 daemon");
+    assert_eq!(
+        header.get(18..20),
+        Some(&[0xB7, 0x00][..]),
+        "not an aarch64 ELF"
+    );
+    let dir = tempfile::tempdir().expect("tempdir");
+    let flight = dir.path().join("flight");
+    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/arm-pass.toml");
+    let mut sim = Command::new(binary("towernav-sim"));
+    sim.arg("flight")
+        .arg("--plan")
+        .arg(&plan)
+        .args(["--seed", "5", "--images", "--out"])
+        .arg(&flight);
+    run(sim);
+    let config = flight.join("replay.toml");
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
+    // The onboard `run`, every frame, as the packaged service runs it.
+    let replay = |program: Command, out: &Path| {
+        let mut cmd = program;
+        cmd.arg("run")
+            .arg("--config")
+            .arg(&config)
+            .arg("--model")
+            .arg(models.join("towers-int8.onnx"))
+            .arg("--type-model")
+            .arg(models.join("tower-types-int8.onnx"))
+            .args(["--speed", "0", "--max-frames", FRAMES])
+            .args(["--listen", &towernav_tests::loopback_endpoint()])
+            .arg("--jsonl")
+            .arg(out);
+        cmd
+    };
+    let x86_out = dir.path().join("x86_64.jsonl");
+    run(replay(Command::new(binary("towernav-edge")), &x86_out));
+    let arm_out = dir.path().join("aarch64.jsonl");
+    let mut qemu = Command::new("qemu-aarch64");
+    qemu.args(["-L", SYSROOT])
+        .arg(&edge_arm)
+        .env("ORT_DYLIB_PATH", &ort);
+    run(replay(qemu, &arm_out));
+
+    let x86 = poses(&x86_out);
+    let arm = poses(&arm_out);
+    assert!(x86.len() >= 30, "x86-64 gave {} poses", x86.len());
+    let seqs = |p: &[(u64, f64, f64)]| p.iter().map(|q| q.0).collect::<Vec<_>>();
+    assert_eq!(
+        seqs(&arm),
+        seqs(&x86),
+        "the two builds fixed different frames"
+    );
+    let worst = x86
+        .iter()
+        .zip(&arm)
+        .map(|(a, b)| (a.1 - b.1).hypot(a.2 - b.2))
+        .fold(0.0, f64::max);
+    eprintln!(
+        "aarch64 under qemu against x86-64: {} poses, largest horizontal difference {worst:.4} m",
+        arm.len()
+    );
+    // INT8 kernels differ between instruction sets: boxes may move by a
+    // rounding step, and the poses by centimetres, not metres.
+    assert!(worst < 0.5, "the builds disagree by {worst:.3} m");
+}

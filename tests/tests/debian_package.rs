@@ -1,0 +1,204 @@
+//! The Debian packages `cargo xtask deb` builds (`cargo xtask test` builds
+//! both and hands them here in `TOWERNAV_DEBS`): each unpacked into a root
+//! of its own (a chroot's view, where systemd cannot run), its files and
+//! control data checked, its systemd unit verified with `systemd-analyze
+//! verify`, and the amd64 package's daemon started from that root on a
+//! short rendered flight with the packaged models and ONNX Runtime.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn output(cmd: &mut Command) -> (bool, String) {
+    let out = cmd.output().expect("the command starts");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+fn ok(cmd: &mut Command) -> String {
+    let (success, text) = output(cmd);
+    assert!(success, "{cmd:?} failed:\n{text}");
+    text
+}
+
+fn binary(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("the test's path");
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/deps/<test>")
+        .join(name)
+}
+
+const FILES: [&str; 8] = [
+    "usr/bin/towernav-edge",
+    "usr/bin/towernav-db",
+    "usr/bin/towernav-fleet",
+    "usr/share/towernav/models/towers-int8.onnx",
+    "usr/share/towernav/models/tower-types-int8.onnx",
+    "usr/lib/towernav/libonnxruntime.so",
+    "etc/towernav/edge.toml",
+    "lib/systemd/system/towernav-edge.service",
+];
+
+#[test]
+fn the_packages_hold_the_daemon_its_models_runtime_config_and_service() {
+    let Some(debs) = std::env::var_os("TOWERNAV_DEBS") else {
+        eprintln!(
+            "skipped: no packages given (`cargo xtask test` builds them with \
+             `cargo xtask deb amd64` and `cargo xtask deb arm64` and sets TOWERNAV_DEBS)"
+        );
+        return;
+    };
+    let debs: Vec<PathBuf> = std::env::split_paths(&debs).collect();
+    assert_eq!(debs.len(), 2, "one package per architecture: {debs:?}");
+    for deb in &debs {
+        let info = ok(Command::new("dpkg-deb").arg("--info").arg(deb));
+        let arch = if info.contains("Architecture: arm64") {
+            "arm64"
+        } else {
+            assert!(info.contains("Architecture: amd64"), "{info}");
+            "amd64"
+        };
+        assert!(info.contains("Package: towernav-edge"), "{info}");
+        let root = tempfile::tempdir().expect("tempdir");
+        ok(Command::new("dpkg-deb").arg("-x").arg(deb).arg(root.path()));
+        for file in FILES {
+            assert!(root.path().join(file).is_file(), "{arch}: no /{file}");
+        }
+        let contents = ok(Command::new("dpkg-deb").arg("--contents").arg(deb));
+        // Owned by root, whoever built it; the daemon is executable.
+        assert!(contents.contains("-rwxr-xr-x root/root"), "{contents}");
+        let control = ok(Command::new("dpkg-deb")
+            .arg("--info")
+            .arg(deb)
+            .arg("postinst"));
+        assert!(
+            control.contains("adduser --system"),
+            "no service user: {control}"
+        );
+        let machine = std::fs::read(root.path().join("usr/bin/towernav-edge")).expect("the daemon");
+        let expected: &[u8] = if arch == "arm64" {
+            &[0xB7, 0]
+        } else {
+            &[0x3E, 0]
+        };
+        assert_eq!(
+            machine.get(18..20),
+            Some(expected),
+            "{arch}: wrong ELF machine"
+        );
+
+        let unit =
+            std::fs::read_to_string(root.path().join("lib/systemd/system/towernav-edge.service"))
+                .expect("unit");
+        for line in [
+            "User=towernav",
+            "Restart=on-failure",
+            "ExecStart=/usr/bin/towernav-edge run --config /etc/towernav/edge.toml",
+            "Environment=ORT_DYLIB_PATH=/usr/lib/towernav/libonnxruntime.so",
+        ] {
+            assert!(
+                unit.lines().any(|l| l == line),
+                "{arch}: the unit lacks {line:?}"
+            );
+        }
+        assert!(!unit.contains("StandardOutput="), "logs go to the journal");
+        let config =
+            std::fs::read_to_string(root.path().join("etc/towernav/edge.toml")).expect("config");
+        for path in [
+            "/usr/share/towernav/models/towers-int8.onnx",
+            "/etc/towernav/credentials/edge-7",
+        ] {
+            assert!(
+                config.contains(path),
+                "{arch}: the config does not point at {path}"
+            );
+        }
+        if arch == "amd64" {
+            verify_unit(root.path());
+            starts_from_the_package(root.path());
+        }
+    }
+}
+
+/// `systemd-analyze verify` on the unit, against the unpacked root.
+fn verify_unit(root: &Path) {
+    let unit = root.join("lib/systemd/system/towernav-edge.service");
+    let (success, text) = output(
+        Command::new("systemd-analyze")
+            .arg("verify")
+            .arg(format!("--root={}", root.display()))
+            .arg(&unit),
+    );
+    // Verification resolves ExecStart inside --root; the user it names exists
+    // only once the package's postinst ran, which is all it may say.
+    let complaints: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .filter(|l| !l.contains("towernav") || !l.to_lowercase().contains("user"))
+        .collect();
+    assert!(
+        success || complaints.is_empty(),
+        "systemd-analyze verify:\n{text}"
+    );
+}
+
+/// The packaged daemon, runtime and models on a short rendered flight.
+fn starts_from_the_package(root: &Path) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let flight = dir.path().join("flight");
+    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/arm-pass.toml");
+    ok(Command::new(binary("towernav-sim"))
+        .arg("flight")
+        .arg("--plan")
+        .arg(&plan)
+        .args(["--seed", "5", "--images", "--out"])
+        .arg(&flight));
+    let jsonl = dir.path().join("poses.jsonl");
+    let models = root.join("usr/share/towernav/models");
+    let log = ok(Command::new(root.join("usr/bin/towernav-edge"))
+        .arg("run")
+        .arg("--config")
+        .arg(flight.join("replay.toml"))
+        .arg("--model")
+        .arg(models.join("towers-int8.onnx"))
+        .arg("--type-model")
+        .arg(models.join("tower-types-int8.onnx"))
+        .args(["--speed", "0", "--max-frames", "30"])
+        .args(["--listen", &towernav_tests::loopback_endpoint()])
+        .arg("--jsonl")
+        .arg(&jsonl)
+        .env(
+            "ORT_DYLIB_PATH",
+            root.join("usr/lib/towernav/libonnxruntime.so"),
+        )
+        .env_remove("RUST_LOG"));
+    let poses = std::fs::read_to_string(&jsonl).expect("poses");
+    assert!(poses.lines().count() >= 10, "few poses:\n{log}");
+    // Not a terminal: plain text for the journal, no colour codes.
+    assert!(!log.contains('\u{1b}'), "colour codes in the log:\n{log}");
+    // The packaged config itself is refused with a clear reason here (no
+    // camera, no credentials), never a panic.
+    let (success, text) = output(
+        Command::new(root.join("usr/bin/towernav-edge"))
+            .arg("run")
+            .arg("--config")
+            .arg(root.join("etc/towernav/edge.toml"))
+            .env(
+                "ORT_DYLIB_PATH",
+                root.join("usr/lib/towernav/libonnxruntime.so"),
+            ),
+    );
+    assert!(
+        !success,
+        "it ran without its camera and credentials:\n{text}"
+    );
+    assert!(!text.contains("panicked"), "{text}");
+    assert!(
+        text.contains("/etc/towernav"),
+        "the error names no path:\n{text}"
+    );
+}
