@@ -228,7 +228,7 @@ fn an_empty_frame_is_an_error_naming_the_frame() {
 /// not cut by the frame edge, less than a quarter hidden) with IoU >= 0.6 and the
 /// right type, on frames of the paper's path it was never trained on.
 #[test]
-#[ignore = "the shipped models (mAP50 0.900 for towers >40 px, 0.934 for those in full view) still miss some clear towers (a 76 px B at t=120 s, not boxed): below the 0.95 target. Run with --ignored."]
+#[ignore = "the shipped models (mAP50 0.870 for towers >40 px, 0.908 for those in full view) still miss some clear towers: below the 0.95 target. Run with --ignored."]
 fn the_shipped_model_finds_the_towers_in_rendered_frames() {
     let mut detector = shipped_detector();
     let scenario = Scenario::preset(World::paper_field(), "paper-path-1", 3).expect("preset");
@@ -400,7 +400,7 @@ fn the_shipped_model_boxes_almost_nothing_on_real_tower_free_frames() {
 /// daemon's threshold, box each lattice tower labelled there (IoU >= 0.5).
 /// Where the folder is absent, the test says so and passes.
 #[test]
-#[ignore = "the shipped detector, trained on rendered side views, finds none of the real lattice towers seen from above at score 0.25 (norway_uav: lattice mAP50 0.07); run with --ignored"]
+#[ignore = "the shipped detector (COCO stage 1) does not box the held-out TTPLA lattice tower seen steeply from above (ttpla_a: 0 of 2 steel towers at 0.25); run with --ignored"]
 fn the_shipped_model_finds_the_lattice_towers_of_real_photographs() {
     use towernav_dataset::ImageFolder;
     use towernav_eval::cmd::real_eval::load_upright;
@@ -441,6 +441,6 @@ fn the_shipped_model_finds_the_lattice_towers_of_real_photographs() {
     );
 }
 
-/// (folder under shared/real, image) pairs with a lattice tower in full view.
-const REAL_LATTICE_FIXTURES: &[(&str, &str)] =
-    &[("ttpla_a", "34_135.jpg"), ("norway_uav", "199.jpg")];
+/// (folder under shared/real, image) pairs with a lattice tower in full view,
+/// from sources no shipped model trained on (`norway_uav` is in training).
+const REAL_LATTICE_FIXTURES: &[(&str, &str)] = &[("ttpla_a", "34_135.jpg")];

@@ -33,6 +33,11 @@ pub fn cross(root: &Path, arch: &str) -> anyhow::Result<CrossBuild> {
         bail!("cross builds for aarch64 only (asked for {arch:?})");
     }
     ensure_program("aarch64-linux-gnu-gcc", "gcc-aarch64-linux-gnu")?;
+    // The C library's headers for the target (ring and SQLite compile C).
+    ensure_file(
+        &format!("{AARCH64_SYSROOT}/include/stdio.h"),
+        "libc6-dev-arm64-cross",
+    )?;
     // ONNX Runtime's library is C++: its runtime, for qemu here (a board has it).
     ensure_file(
         &format!("{AARCH64_SYSROOT}/lib/libstdc++.so.6"),
