@@ -164,3 +164,47 @@ fn delete_asks_away_from_the_button_and_can_be_undone_and_the_history_names_who(
     harness.run();
     harness.get_by_label("removed A1");
 }
+
+#[test]
+fn an_import_with_a_far_tower_waits_and_then_is_undone_as_a_whole() {
+    let (_tx, _commands, app) = app();
+    let mut harness = harness(app);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join("survey.csv");
+    // One latitude with a wrong digit: 26 degrees north of the line.
+    std::fs::write(
+        &file,
+        "id,tower_type,lat_deg,lon_deg,ground_elev_m,height_m\n\
+         C1,A,30.5231,114.3612,24.5,33\n\
+         C2,A,56.5241,114.3622,24.5,33\n",
+    )
+    .expect("write");
+    harness
+        .get_by_role_and_label(egui::Role::TextInput, "File")
+        .click();
+    harness.run();
+    harness.event(egui::Event::Text(file.display().to_string()));
+    harness.run();
+    harness.get_by_label("Import").click();
+    harness.run();
+    assert!(
+        harness.state().db().get("C1").expect("db").is_none(),
+        "held back"
+    );
+    harness.get_by_label_contains("C2: stands");
+    harness.get_by_label("Import anyway").click();
+    harness.run();
+    assert!(harness.state().db().get("C2").expect("db").is_some());
+    harness
+        .get_by_label("Undo import of survey.csv (2 towers)")
+        .click();
+    harness.run();
+    for id in ["C1", "C2"] {
+        assert!(
+            harness.state().db().get(id).expect("db").is_none(),
+            "{id} is still there"
+        );
+    }
+    harness.get_by_label_contains("took back the import of survey.csv");
+    assert!(harness.state().db().get("A1").expect("db").is_some());
+}

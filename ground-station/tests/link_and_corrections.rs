@@ -298,3 +298,36 @@ fn an_endpoint_that_brings_nothing_is_called_out() {
     harness.run();
     harness.get_by_label_contains("Nothing heard from any edge for 12 s via");
 }
+
+#[test]
+fn a_heard_uav_without_a_presence_token_is_heard_and_a_stale_frame_warns_the_picker() {
+    // As in a replay: data, no liveliness token.
+    let (tx, _commands, app) = app();
+    tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 5)))
+        .expect("send");
+    tx.send(NetEvent::Status(status())).expect("send");
+    for e in frame_events("uav1", 5) {
+        tx.send(e).expect("send");
+    }
+    let now = Rc::new(Cell::new(0.0));
+    let mut harness = harness(app, now.clone());
+    harness.run();
+    harness.get_by_label("heard");
+    assert!(harness.query_by_label("presence unknown").is_none());
+    // The link goes: the frame is old, and the picker says so.
+    now.set(12.0);
+    harness.run();
+    harness.get_by_label("T7 A1").click();
+    harness.run();
+    harness.get_by_label_contains("this frame is old");
+    // Enter in the search box picks the only tower that matches.
+    harness
+        .get_by_role_and_label(egui::Role::TextInput, "Tower id")
+        .click();
+    harness.run();
+    harness.event(egui::Event::Text("b1".into()));
+    harness.run();
+    harness.key_press(egui::Key::Enter);
+    harness.run();
+    harness.get_by_label("Send B1");
+}
