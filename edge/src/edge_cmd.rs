@@ -34,7 +34,7 @@ use crate::daemon::config::{
 };
 use crate::daemon::mavlink_out::MavlinkOut;
 use crate::daemon::run::{Daemon, RunOptions, RunSummary, drop_advice, dropped_share};
-use crate::daemon::source::{FfmpegSource, FrameSource, ImageFolderSource};
+use crate::daemon::source::{FfmpegSource, FirstFrames, FrameSource, ImageFolderSource};
 use crate::daemon::worker::Worker;
 use crate::landmark_sync::LandmarkSync;
 use crate::node::{EdgeNode, open_session_as, wait_for_peer};
@@ -404,7 +404,7 @@ pub(crate) fn check_log_covers(
 pub(crate) fn open_source(config: &EdgeConfig) -> anyhow::Result<Box<dyn FrameSource>> {
     let source = &config.source;
     let path = source.path.as_deref().unwrap_or_default();
-    Ok(match source.kind {
+    let opened: Box<dyn FrameSource> = match source.kind {
         SourceKind::Images => Box::new(ImageFolderSource::open(
             Path::new(path),
             source.fps,
@@ -417,6 +417,10 @@ pub(crate) fn open_source(config: &EdgeConfig) -> anyhow::Result<Box<dyn FrameSo
             source.fps,
             &source.frame_times(),
         )?),
+    };
+    Ok(match source.max_frames {
+        Some(limit) => Box::new(FirstFrames::new(opened, limit)),
+        None => opened,
     })
 }
 

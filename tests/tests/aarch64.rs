@@ -1,7 +1,8 @@
 //! The onboard build for a 64-bit ARM companion computer, run here under
 //! Debian's qemu-user: `cargo xtask cross aarch64` builds it and `cargo xtask
-//! test` hands this test its folder (`TOWERNAV_AARCH64_BIN`) and ONNX
-//! Runtime's aarch64 library (`TOWERNAV_AARCH64_ORT`). The aarch64 daemon
+//! test` hands this test its folder (`TOWERNAV_AARCH64_BIN`), ONNX
+//! Runtime's aarch64 library (`TOWERNAV_AARCH64_ORT`) and qemu's prefix
+//! (`TOWERNAV_AARCH64_SYSROOT`). The aarch64 daemon
 //! replays a short rendered flight from its images, and its poses are
 //! compared with the x86-64 daemon's on the same frames.
 //!
@@ -11,10 +12,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The aarch64 C library and loader from Debian's cross packages.
-const SYSROOT: &str = "/usr/aarch64-linux-gnu";
 /// Frames replayed: enough for the filter to settle, few enough for qemu.
-const FRAMES: &str = "60";
+const FRAMES: &str = "45";
 
 fn binary(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("the test's path");
@@ -53,13 +52,14 @@ fn poses(jsonl: &Path) -> Vec<(u64, f64, f64)> {
 
 #[test]
 fn the_aarch64_daemon_under_qemu_replays_a_flight_as_the_x86_64_one_does() {
-    let (Some(bin), Some(ort)) = (
+    let (Some(bin), Some(ort), Some(sysroot)) = (
         std::env::var_os("TOWERNAV_AARCH64_BIN"),
         std::env::var_os("TOWERNAV_AARCH64_ORT"),
+        std::env::var_os("TOWERNAV_AARCH64_SYSROOT"),
     ) else {
         eprintln!(
             "skipped: no aarch64 build given (`cargo xtask test` builds one with \
-             `cargo xtask cross aarch64` and sets TOWERNAV_AARCH64_BIN and TOWERNAV_AARCH64_ORT)"
+             `cargo xtask cross aarch64` and sets TOWERNAV_AARCH64_BIN, _ORT and _SYSROOT)"
         );
         return;
     };
@@ -103,7 +103,10 @@ fn the_aarch64_daemon_under_qemu_replays_a_flight_as_the_x86_64_one_does() {
     run(replay(Command::new(binary("towernav-edge")), &x86_out));
     let arm_out = dir.path().join("aarch64.jsonl");
     let mut qemu = Command::new("qemu-aarch64");
-    qemu.args(["-L", SYSROOT])
+    // The prefix holds the aarch64 C library and an ARM board's /proc/cpuinfo
+    // and /sys CPU lists, which ONNX Runtime's CPU probe reads.
+    qemu.arg("-L")
+        .arg(&sysroot)
         .arg(&edge_arm)
         .env("ORT_DYLIB_PATH", &ort);
     run(replay(qemu, &arm_out));

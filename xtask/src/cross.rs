@@ -5,8 +5,8 @@
 //!
 //! Writes `target/aarch64-unknown-linux-gnu/release/{towernav-edge,
 //! towernav-db, towernav-fleet}` and `.ort/aarch64/lib/libonnxruntime.so`.
-//! Debian's `qemu-user` runs them here (`qemu-aarch64 -L /usr/aarch64-linux-gnu`),
-//! as `tests/tests/aarch64.rs` does.
+//! Debian's `qemu-user` runs them here (`qemu-aarch64 -L
+//! target/aarch64-qemu-sysroot`), as `tests/tests/aarch64.rs` does.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -26,6 +26,38 @@ pub struct CrossBuild {
     pub bin: PathBuf,
     /// ONNX Runtime's aarch64 shared library.
     pub ort: PathBuf,
+    /// The prefix for `qemu-aarch64 -L`: the aarch64 C library, and a
+    /// `/proc/cpuinfo` and `/sys/devices/system/cpu` of a 2-core Cortex-A76.
+    pub qemu_sysroot: PathBuf,
+}
+
+/// Two Cortex-A76 cores (a Raspberry Pi 5's), as the kernel lists them.
+const CPUINFO: &str = "BogoMIPS\t: 108.00\n\
+    Features\t: fp asimd evtstrm aes pmull sha1 sha2 crc32 atomics fphp asimdhp cpuid asimdrdm lrcpc dcpop asimddp\n\
+    CPU implementer\t: 0x41\nCPU architecture: 8\nCPU variant\t: 0x4\nCPU part\t: 0xd0b\nCPU revision\t: 1\n";
+
+/// qemu-user looks up every path under its `-L` prefix first. ONNX
+/// Runtime's CPU probe (cpuinfo) reads `/proc/cpuinfo` and
+/// `/sys/devices/system/cpu`, which under qemu-user are the x86 host's, and
+/// crashes on them; this prefix gives it an ARM board's. A real board has its own.
+fn qemu_sysroot(root: &Path) -> anyhow::Result<PathBuf> {
+    let dir = target_dir(root).join("aarch64-qemu-sysroot");
+    let cpu = dir.join("sys/devices/system/cpu");
+    std::fs::create_dir_all(&cpu).with_context(|| format!("creating {}", cpu.display()))?;
+    std::fs::create_dir_all(dir.join("proc"))?;
+    let cpuinfo: String = (0..2)
+        .map(|i| format!("processor\t: {i}\n{CPUINFO}\n"))
+        .collect();
+    std::fs::write(dir.join("proc/cpuinfo"), cpuinfo)?;
+    for list in ["possible", "present", "online"] {
+        std::fs::write(cpu.join(list), "0-1\n")?;
+    }
+    let lib = dir.join("lib");
+    if std::fs::symlink_metadata(&lib).is_err() {
+        std::os::unix::fs::symlink(format!("{AARCH64_SYSROOT}/lib"), &lib)
+            .with_context(|| format!("linking {}", lib.display()))?;
+    }
+    Ok(dir)
 }
 
 pub fn cross(root: &Path, arch: &str) -> anyhow::Result<CrossBuild> {
@@ -90,7 +122,11 @@ pub fn cross(root: &Path, arch: &str) -> anyhow::Result<CrossBuild> {
         anyhow::ensure!(path.is_file(), "{} was not built", path.display());
         eprintln!("xtask: {}", path.display());
     }
-    Ok(CrossBuild { bin, ort })
+    Ok(CrossBuild {
+        bin,
+        ort,
+        qemu_sysroot: qemu_sysroot(root)?,
+    })
 }
 
 /// `rustup target add` when the standard library for `target` is missing.

@@ -97,8 +97,18 @@ pub fn deb(root: &Path, arch: &str) -> anyhow::Result<PathBuf> {
         std::fs::write(&dest, text).with_context(|| format!("writing {}", dest.display()))?;
         set_mode(&dest, mode)
     };
+    // Stripped: the release profile keeps debug info, a board needs none of it.
+    let strip = if arch == "arm64" {
+        "aarch64-linux-gnu-strip"
+    } else {
+        "strip"
+    };
     for name in ["towernav-edge", "towernav-db", "towernav-fleet"] {
-        put(&bin.join(name), &format!("usr/bin/{name}"), 0o755)?;
+        let to = format!("usr/bin/{name}");
+        put(&bin.join(name), &to, 0o755)?;
+        run(Command::new(strip)
+            .arg("--strip-debug")
+            .arg(stage.join(&to)))?;
     }
     for model in ["towers-int8.onnx", "tower-types-int8.onnx"] {
         put(

@@ -530,6 +530,7 @@ fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
         .env("TOWERNAV_PYTHONPATH", root.join(".pydeps"))
         .env("TOWERNAV_AARCH64_BIN", &aarch64.bin)
         .env("TOWERNAV_AARCH64_ORT", &aarch64.ort)
+        .env("TOWERNAV_AARCH64_SYSROOT", &aarch64.qemu_sysroot)
         .env("TOWERNAV_DEBS", debs))
 }
 

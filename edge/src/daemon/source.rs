@@ -65,6 +65,46 @@ pub trait FrameSource: Send {
     }
 }
 
+/// The first frames of another source: `--max-frames` for any camera or
+/// recording, as for the simulator.
+pub struct FirstFrames {
+    inner: Box<dyn FrameSource>,
+    limit: u64,
+    given: u64,
+}
+
+impl FirstFrames {
+    pub fn new(inner: Box<dyn FrameSource>, limit: u64) -> Self {
+        Self {
+            inner,
+            limit,
+            given: 0,
+        }
+    }
+}
+
+impl FrameSource for FirstFrames {
+    fn next_frame(&mut self) -> Option<Result<CapturedFrame, SourceError>> {
+        if self.given >= self.limit {
+            return None;
+        }
+        self.given += 1;
+        self.inner.next_frame()
+    }
+
+    fn describe(&self) -> String {
+        format!("{} (first {} frames)", self.inner.describe(), self.limit)
+    }
+
+    fn span_s(&self) -> Option<(f64, f64)> {
+        self.inner.span_s()
+    }
+
+    fn frame_count(&self) -> Option<u64> {
+        self.inner.frame_count().map(|n| n.min(self.limit))
+    }
+}
+
 /// A folder of images (PNG, JPEG), in file-name order, each at its time.
 pub struct ImageFolderSource {
     folder: PathBuf,
@@ -410,6 +450,15 @@ mod tests {
                 .expect("image");
         }
         dir
+    }
+
+    #[test]
+    fn max_frames_stops_any_source_after_its_first_frames() {
+        let dir = folder(&["a.png", "b.png", "c.png"]);
+        let inner = ImageFolderSource::open(dir.path(), 30.0, &FrameTimes::Rate).expect("opens");
+        let mut source = FirstFrames::new(Box::new(inner), 2);
+        assert_eq!(source.frame_count(), Some(2));
+        assert_eq!(std::iter::from_fn(|| source.next_frame()).count(), 2);
     }
 
     #[test]
