@@ -29,6 +29,9 @@ use crate::ShellError;
 use crate::landmark_sync::LandmarkSync;
 use crate::node::EdgeNode;
 
+/// How often the status goes to the log as one line (seconds of source time).
+const STATUS_LOG_PERIOD_S: f64 = 60.0;
+
 /// How the shell around the core behaves.
 pub struct RunOptions {
     /// Every frame, at a multiple of the source's clock, or a live camera's pace.
@@ -100,6 +103,8 @@ struct Sinks<'a> {
     record: FlightRecord,
     pacing: Pacing,
     warned_drops: bool,
+    /// When the last status line went to the log (the source's clock).
+    status_logged_at_s: Option<f64>,
 }
 
 impl Daemon<'_> {
@@ -218,6 +223,7 @@ impl<'a> Sinks<'a> {
             record: FlightRecord::default(),
             pacing: options.pacing,
             warned_drops: false,
+            status_logged_at_s: None,
         })
     }
 
@@ -358,6 +364,23 @@ impl<'a> Sinks<'a> {
                 }
                 Output::Status(status) => {
                     self.node.publish_status(&status).await?;
+                    // A line a minute for the journal: how the service is doing.
+                    if self
+                        .status_logged_at_s
+                        .is_none_or(|t| status.time_s - t >= STATUS_LOG_PERIOD_S)
+                    {
+                        self.status_logged_at_s = Some(status.time_s);
+                        tracing::info!(
+                            state = ?status.state,
+                            health = ?status.health,
+                            frames_per_s = format!("{:.1}", status.frame_rate_hz),
+                            latency_p50_ms = format!("{:.1}", status.latency_p50_ms),
+                            latency_p99_ms = format!("{:.1}", status.latency_p99_ms),
+                            dropped = status.frames_dropped,
+                            failed = status.frames_failed,
+                            "status"
+                        );
+                    }
                     if !self.warned_drops
                         && let Some(share) =
                             dropped_share(status.frames_dropped, status.frames_processed)
