@@ -1,12 +1,14 @@
 //! What a flight log says about the UAV: its attitude and, where present,
 //! its GNSS fixes and barometric altitude, on the autopilot's clock (seconds since boot), from
 //! ArduPilot DataFlash (`.bin`), MAVLink telemetry logs (`.tlog`), PX4 ULog
-//! (`.ulg`) and the project's CSV. Attitude between samples is slerped.
+//! (`.ulg`), the project's CSV and DJI's video telemetry subtitles (`.srt`,
+//! on the video's clock). Attitude between samples is slerped.
 //!
 //! Readers take bytes; [`FlightLog::read`] is the one place that opens a file.
 
 mod csv_log;
 mod dataflash;
+pub mod dji_srt;
 mod error;
 mod samples;
 mod tlog;
@@ -26,6 +28,8 @@ pub enum LogFormat {
     Tlog,
     Ulog,
     Csv,
+    /// DJI's per-frame subtitles beside a video.
+    DjiSrt,
 }
 
 impl LogFormat {
@@ -36,6 +40,7 @@ impl LogFormat {
             "tlog" => Self::Tlog,
             "ulg" => Self::Ulog,
             "csv" => Self::Csv,
+            "srt" => Self::DjiSrt,
             _ => return None,
         })
     }
@@ -58,7 +63,7 @@ impl FlightLog {
         let bad = |reason: String| LogError::new(path, reason);
         let format = LogFormat::of(path).ok_or_else(|| {
             bad(
-                "the extension is not one of .bin (ArduPilot), .tlog (MAVLink), .ulg (PX4), .csv"
+                "the extension is not one of .bin (ArduPilot), .tlog (MAVLink), .ulg (PX4), .csv, .srt (DJI)"
                     .into(),
             )
         })?;
@@ -72,6 +77,7 @@ impl FlightLog {
             LogFormat::Tlog => tlog::parse(bytes)?,
             LogFormat::Ulog => ulog::parse(bytes)?,
             LogFormat::Csv => csv_log::parse(bytes)?,
+            LogFormat::DjiSrt => dji_srt::parse(bytes)?,
         };
         samples::tidy(&mut log.attitude, |s| s.time_s);
         samples::tidy(&mut log.gnss, |s| s.time_s);
@@ -84,6 +90,7 @@ impl FlightLog {
                     LogFormat::Tlog => "ATTITUDE",
                     LogFormat::Ulog => "vehicle_attitude",
                     LogFormat::Csv => "rows of time_s,roll_deg,pitch_deg,heading_deg",
+                    LogFormat::DjiSrt => "gimbal angles",
                 }
             )));
         }
