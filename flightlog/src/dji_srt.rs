@@ -240,8 +240,10 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
     if log.attitude.is_empty() {
         return Err(LogError::bare(format!(
             "its {} cues have positions but no gimbal angles (this model writes none): \
-             give the camera's attitude from another log (--attitude-log with the \
-             aircraft's .bin, .tlog, .ulg or a CSV of time_s,roll_deg,pitch_deg,heading_deg)",
+             the chain needs the camera's attitude; give the aircraft's own flight log \
+             as --log instead (a .bin, .tlog, .ulg, or its flight record converted to a \
+             CSV of time_s,roll_deg,pitch_deg,heading_deg,lat_deg,lon_deg,alt_msl_m on the \
+             video's clock)",
             frames.len()
         )));
     }

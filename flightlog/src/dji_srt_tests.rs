@@ -112,7 +112,10 @@ fn a_file_with_gimbal_angles_is_a_flight_log_and_one_without_says_what_it_needs(
     ))
     .expect("fixture");
     let err = parse(&bytes).expect_err("no attitude");
-    assert!(err.reason.contains("--attitude-log"), "{err}");
+    assert!(
+        err.reason.contains("no gimbal angles") && err.reason.contains("--log"),
+        "{err}"
+    );
 }
 
 #[test]
