@@ -520,18 +520,30 @@ fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
     run(clippy.cargo(root).args(["build", "-p", "towernav-edge"]))?;
     // The onboard binaries for aarch64, which a test runs under qemu-user,
     // and both architectures' Debian packages, which a test unpacks.
-    let aarch64 = cross::cross(root, "aarch64")?;
-    system_packages::ensure_program("qemu-aarch64", "qemu-user")?;
-    let debs = std::env::join_paths([deb::deb(root, "amd64")?, deb::deb(root, "arm64")?])?;
-    run(clippy
-        .cargo(root)
+    let mut debs = vec![deb::deb(root, "amd64")?];
+    // The aarch64 toolchain comes from Debian and rustup: where the machine
+    // cannot get it, its tests say they were skipped, and the rest run.
+    let aarch64 = cross::cross(root, "aarch64")
+        .and_then(|build| {
+            system_packages::ensure_program("qemu-aarch64", "qemu-user")?;
+            debs.push(deb::deb(root, "arm64")?);
+            Ok(build)
+        })
+        .map_err(|e| eprintln!("xtask: no aarch64 build here ({e:#}): its tests are skipped"))
+        .ok();
+    let mut tests = clippy.cargo(root);
+    tests
         .args(["test", "--workspace", "--no-fail-fast"])
         .env("ORT_DYLIB_PATH", ort)
         .env("TOWERNAV_PYTHONPATH", root.join(".pydeps"))
-        .env("TOWERNAV_AARCH64_BIN", &aarch64.bin)
-        .env("TOWERNAV_AARCH64_ORT", &aarch64.ort)
-        .env("TOWERNAV_AARCH64_SYSROOT", &aarch64.qemu_sysroot)
-        .env("TOWERNAV_DEBS", debs))
+        .env("TOWERNAV_DEBS", std::env::join_paths(&debs)?);
+    if let Some(build) = &aarch64 {
+        tests
+            .env("TOWERNAV_AARCH64_BIN", &build.bin)
+            .env("TOWERNAV_AARCH64_ORT", &build.ort)
+            .env("TOWERNAV_AARCH64_SYSROOT", &build.qemu_sysroot);
+    }
+    run(&mut tests)
 }
 
 /// clippy-driver as the compiler of the workspace's own crates, with
