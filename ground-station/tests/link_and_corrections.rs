@@ -331,3 +331,20 @@ fn a_heard_uav_without_a_presence_token_is_heard_and_a_stale_frame_warns_the_pic
     harness.run();
     harness.get_by_label("Send B1");
 }
+
+#[test]
+fn a_recording_that_starts_takes_the_old_cannot_record_away() {
+    let (tx, _commands, mut harness, _now) = live();
+    tx.send(NetEvent::Notice("cannot record: /full/disk.mcap: no space".into()))
+        .expect("send");
+    harness.run();
+    harness.get_by_label_contains("cannot record");
+    tx.send(NetEvent::Recording(Some("session.mcap".into())))
+        .expect("send");
+    harness.run();
+    assert!(
+        harness.query_by_label_contains("cannot record").is_none(),
+        "a stale 'cannot record' beside a running recording"
+    );
+    harness.get_by_label_contains("REC");
+}
