@@ -335,8 +335,10 @@ fn a_heard_uav_without_a_presence_token_is_heard_and_a_stale_frame_warns_the_pic
 #[test]
 fn a_recording_that_starts_takes_the_old_cannot_record_away() {
     let (tx, _commands, mut harness, _now) = live();
-    tx.send(NetEvent::Notice("cannot record: /full/disk.mcap: no space".into()))
-        .expect("send");
+    tx.send(NetEvent::Notice(
+        "cannot record: /full/disk.mcap: no space".into(),
+    ))
+    .expect("send");
     harness.run();
     harness.get_by_label_contains("cannot record");
     tx.send(NetEvent::Recording(Some("session.mcap".into())))

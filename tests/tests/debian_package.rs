@@ -4,7 +4,7 @@
 //! of its own (a chroot's view, where systemd cannot run), its files and
 //! control data checked, its systemd unit verified with `systemd-analyze
 //! verify` (which says nothing of a good unit, and names a bad directive or a
-//! missing program), and the amd64 package's daemon started from that root on a
+//! missing program), its `postinst` run against stand-in programs, and the amd64 package's daemon started from that root on a
 //! short rendered flight with the packaged models and ONNX Runtime.
 
 use std::path::{Path, PathBuf};
@@ -126,6 +126,7 @@ fn the_packages_hold_the_daemon_its_models_runtime_config_and_service() {
         }
         if arch == "amd64" {
             verify_unit(root.path());
+            configures_a_service_user(deb);
             starts_from_the_package(root.path());
         }
     }
@@ -148,6 +149,55 @@ fn verify_unit(root: &Path) {
     assert!(
         success && text.trim().is_empty(),
         "systemd-analyze verify:\n{text}"
+    );
+}
+
+/// The package's `postinst configure`, run with every program it calls
+/// stood in for by one that writes down its arguments (the test must not
+/// add users to the machine it runs on): it adds the system user, puts it in
+/// the camera's and the serial port's groups, makes the state and
+/// credentials folders, and does not start the service.
+fn configures_a_service_user(deb: &Path) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let control = dir.path().join("DEBIAN");
+    ok(Command::new("dpkg-deb").arg("-e").arg(deb).arg(&control));
+    let bin = dir.path().join("bin");
+    std::fs::create_dir_all(&bin).expect("bin");
+    let calls = dir.path().join("calls.txt");
+    for program in ["adduser", "getent", "install", "systemctl"] {
+        // getent finds nothing: the user and groups are new.
+        let status = if program == "getent" { 2 } else { 0 };
+        let stub = bin.join(program);
+        std::fs::write(
+            &stub,
+            format!(
+                "#!/bin/sh\necho \"{program} $*\" >> '{}'\nexit {status}\n",
+                calls.display()
+            ),
+        )
+        .expect("stub");
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&stub, std::fs::Permissions::from_mode(0o755)).expect("mode");
+    }
+    let path = format!("{}:/usr/bin:/bin", bin.display());
+    ok(Command::new("sh")
+        .arg(control.join("postinst"))
+        .arg("configure")
+        .env("PATH", path));
+    let calls = std::fs::read_to_string(&calls).expect("calls");
+    for call in [
+        "adduser --system --group --home /var/lib/towernav --no-create-home",
+        "install -d -o towernav -g towernav -m 0750 /var/lib/towernav",
+        "install -d -o root -g towernav -m 0750 /etc/towernav/credentials",
+    ] {
+        assert!(
+            calls.contains(call),
+            "postinst did not run {call:?}:\n{calls}"
+        );
+    }
+    assert!(
+        !calls.contains("systemctl enable") && !calls.contains("systemctl start"),
+        "installing must not start the service before its config is filled in:\n{calls}"
     );
 }
 
