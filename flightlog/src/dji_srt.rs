@@ -80,32 +80,26 @@ fn num(re: &Regex, text: &str) -> Option<f64> {
     re.captures(text)?.get(1)?.as_str().parse().ok()
 }
 
-/// Seconds since the Unix epoch's day count of the date line (only
+/// The date line's time, seconds on a day count of its own (only
 /// differences between cues are used).
 fn date_s(text: &str) -> Option<f64> {
     let c = DATE.captures(text)?;
-    let n = |i: usize| c.get(i).and_then(|m| m.as_str().parse::<f64>().ok());
-    let (y, mo, d) = (n(1)?, n(2)?, n(3)?);
-    // Days from a civil date (Howard Hinnant's algorithm), enough to order cues.
-    let (y, m) = if mo <= 2.0 {
-        (y - 1.0, mo + 9.0)
-    } else {
-        (y, mo - 3.0)
-    };
-    let era = (y / 400.0).floor();
-    let yoe = y - era * 400.0;
-    let doy = ((153.0 * m + 2.0) / 5.0).floor() + d - 1.0;
-    let doe = yoe * 365.0 + (yoe / 4.0).floor() - (yoe / 100.0).floor() + doy;
-    let days = era * 146_097.0 + doe;
-    let ms = c
+    let n = |i: usize| c.get(i)?.as_str().parse::<u32>().ok();
+    let month = time::Month::try_from(u8::try_from(n(2)?).ok()?).ok()?;
+    let date = time::Date::from_calendar_date(
+        i32::try_from(n(1)?).ok()?,
+        month,
+        u8::try_from(n(3)?).ok()?,
+    )
+    .ok()?;
+    let ms: f64 = c
         .get(7)
-        .map(|m| {
-            format!("0.{:0<3}", m.as_str())
-                .parse::<f64>()
-                .unwrap_or(0.0)
-        })
-        .unwrap_or(0.0);
-    Some(days * 86_400.0 + n(4)? * 3600.0 + n(5)? * 60.0 + n(6)? + ms)
+        .map_or(Some(0.0), |m| format!("0.{:0<3}", m.as_str()).parse().ok())?;
+    Some(
+        f64::from(date.to_julian_day()) * 86_400.0
+            + f64::from(n(4)? * 3600 + n(5)? * 60 + n(6)?)
+            + ms,
+    )
 }
 
 fn cue_start_s(text: &str) -> Option<f64> {

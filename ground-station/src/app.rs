@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use towernav_geometry::{Datum, Geodetic};
 use towernav_landmark_db::{
     Author, CheckKind, DbError, Expect, Format, HistoryEntry, ImportOptions, LandmarkDb,
-    OsmMapping, export_csv, export_geojson, export_osm_xml, import_file, likely_mistakes,
+    OsmMapping, export_csv, export_geojson, export_osm_xml, import_parsed, likely_mistakes,
     parse_file,
 };
 use towernav_protocol::{LandmarkRecord, NodeId};
@@ -445,23 +445,6 @@ impl GsApp {
         }
     }
 
-    /// Every tower `path` would write, as the database holds it now (`None`:
-    /// new): what undoing the import restores. `None` if the file does not
-    /// parse (the import then fails and says why).
-    fn before_import(
-        &self,
-        path: &std::path::Path,
-        format: Format,
-        options: &ImportOptions,
-    ) -> Option<Vec<(String, Option<LandmarkRecord>)>> {
-        let parsed = parse_file(path, format, &options.osm).ok()?;
-        parsed
-            .records
-            .iter()
-            .map(|r| Some((r.id.clone(), self.db.get(&r.id).ok()?)))
-            .collect()
-    }
-
     fn apply_editor(&mut self, action: EditorAction) {
         let author = Author::now(&self.options.operator);
         let outcome: Result<String, String> = match action {
@@ -521,12 +504,25 @@ impl GsApp {
                     FileFormat::GeoJson => Format::GeoJson,
                     FileFormat::Osm => Format::OsmXml,
                 };
-                // The form's checks, before anything is written: a tower far
-                // from every other or on top of another waits for the operator.
-                let doubtful = if confirmed {
+                // Read once: the form's checks, the undo's "before" and the
+                // write all take the same towers.
+                let parsed = match parse_file(&path, format, &options.osm) {
+                    Ok(parsed) => parsed,
+                    Err(e) => {
+                        self.editor.message = Some((false, e.to_string()));
+                        return;
+                    }
+                };
+                // Before anything is written: a tower far from every other
+                // or on top of another waits for the operator.
+                let doubtful: Vec<String> = if confirmed {
                     Vec::new()
                 } else {
-                    doubtful_towers(&path, format, &options, &self.records)
+                    likely_mistakes(&parsed.records, &self.records, &options)
+                        .into_iter()
+                        .filter(|w| matches!(w.kind, CheckKind::Far | CheckKind::Spacing))
+                        .map(|w| w.to_string())
+                        .collect()
                 };
                 if !doubtful.is_empty() {
                     self.editor.pending_import = Some(PendingImport {
@@ -541,31 +537,35 @@ impl GsApp {
                     return;
                 }
                 self.editor.pending_import = None;
-                let before = self.before_import(&path, format, &options);
-                import_file(&mut self.db, &path, format, &options, &author)
-                    .map(|r| {
-                        if let Some(before) = before.filter(|b| !b.is_empty()) {
-                            self.push_undo(UndoStep::Import {
-                                file: path
-                                    .file_name()
-                                    .map_or_else(|| path.display().to_string(), |n| {
-                                        n.to_string_lossy().into_owned()
-                                    }),
-                                before,
-                            });
+                let before: Result<Vec<_>, _> = parsed
+                    .records
+                    .iter()
+                    .map(|r| self.db.get(&r.id).map(|stored| (r.id.clone(), stored)))
+                    .collect();
+                let file = path.display().to_string();
+                before
+                    .map_err(|e| e.to_string())
+                    .and_then(|before| {
+                        let report = import_parsed(&mut self.db, parsed, &file, &options, &author)
+                            .map_err(|e| e.to_string())?;
+                        if !before.is_empty() {
+                            let name = path
+                                .file_name()
+                                .map_or_else(|| file.clone(), |n| n.to_string_lossy().into_owned());
+                            self.push_undo(UndoStep::Import { file: name, before });
                         }
+                        Ok(report)
+                    })
+                    .map(|r| {
                         let mut text = format!(
-                            "imported {} towers from {} (revision {})",
-                            r.imported,
-                            path.display(),
-                            r.revision
+                            "imported {} towers from {file} (revision {})",
+                            r.imported, r.revision
                         );
                         for w in r.warnings.iter().take(3) {
                             text += &format!("; {}: {}", w.id, w.message);
                         }
                         text
                     })
-                    .map_err(|e| e.to_string())
             }
             EditorAction::Export(path, format, false) if path.exists() => {
                 self.editor.pending_overwrite = Some((path.clone(), format));
@@ -609,25 +609,6 @@ impl GsApp {
             path.display()
         ))
     }
-}
-
-/// The towers of an import file that the form would ask about: far from
-/// every other, or on top of another. A file that does not parse gives none
-/// here; the import itself then says why.
-fn doubtful_towers(
-    path: &std::path::Path,
-    format: Format,
-    options: &ImportOptions,
-    stored: &[towernav_protocol::LandmarkRecord],
-) -> Vec<String> {
-    let Ok(parsed) = towernav_landmark_db::import::parse_file(path, format, &options.osm) else {
-        return Vec::new();
-    };
-    likely_mistakes(&parsed.records, stored, options)
-        .into_iter()
-        .filter(|w| matches!(w.kind, CheckKind::Far | CheckKind::Spacing))
-        .map(|w| w.to_string())
-        .collect()
 }
 
 #[cfg(test)]

@@ -548,6 +548,14 @@ fn history(
 mod tests {
     use super::*;
 
+    /// The rectangles of labels placed at `at` (bottom-left corners).
+    fn label_rects(at: &[egui::Pos2], sizes: &[egui::Vec2]) -> Vec<Rect> {
+        at.iter()
+            .zip(sizes)
+            .map(|(p, s)| Rect::from_min_size(*p - vec2(0.0, s.y), *s))
+            .collect()
+    }
+
     #[test]
     fn labels_of_bunched_boxes_are_stacked_clear_of_each_other() {
         // Three towers side by side near the horizon, boxes overlapping.
@@ -558,11 +566,7 @@ mod tests {
         ];
         let sizes = [vec2(40.0, 14.0); 3];
         let at = place_labels(&boxes, &sizes);
-        let rects: Vec<Rect> = at
-            .iter()
-            .zip(&sizes)
-            .map(|(p, s)| Rect::from_min_size(*p - vec2(0.0, s.y), *s))
-            .collect();
+        let rects = label_rects(&at, &sizes);
         assert!(!rects[0].intersects(rects[1]), "{rects:?}");
         // The lone box keeps its label just above it.
         assert_eq!(at[2], pos2(300.0, 198.0));
@@ -581,11 +585,7 @@ mod tests {
         ];
         let sizes = [vec2(40.0, 14.0); 2];
         let at = place_labels(&boxes, &sizes);
-        let rects: Vec<Rect> = at
-            .iter()
-            .zip(&sizes)
-            .map(|(p, s)| Rect::from_min_size(*p - vec2(0.0, s.y), *s))
-            .collect();
+        let rects = label_rects(&at, &sizes);
         let same_row = (rects[0].top() - rects[1].top()).abs() < 1.0;
         let gap = (rects[1].left() - rects[0].right()).max(rects[0].left() - rects[1].right());
         assert!(

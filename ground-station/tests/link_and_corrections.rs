@@ -47,9 +47,23 @@ fn live() -> (
     Harness<'static, GsApp>,
     Rc<Cell<f64>>,
 ) {
+    one_uav(true)
+}
+
+/// One UAV heard, with or without its presence token (a replay has none).
+fn one_uav(
+    token: bool,
+) -> (
+    std::sync::mpsc::Sender<NetEvent>,
+    tokio::sync::mpsc::UnboundedReceiver<NetCommand>,
+    Harness<'static, GsApp>,
+    Rc<Cell<f64>>,
+) {
     let (tx, commands, app) = app();
-    let uav = NodeId::new("uav1").expect("valid");
-    tx.send(NetEvent::Alive { uav, alive: true }).expect("send");
+    if token {
+        let uav = NodeId::new("uav1").expect("valid");
+        tx.send(NetEvent::Alive { uav, alive: true }).expect("send");
+    }
     tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 5)))
         .expect("send");
     tx.send(NetEvent::Status(status())).expect("send");
@@ -302,16 +316,7 @@ fn an_endpoint_that_brings_nothing_is_called_out() {
 #[test]
 fn a_heard_uav_without_a_presence_token_is_heard_and_a_stale_frame_warns_the_picker() {
     // As in a replay: data, no liveliness token.
-    let (tx, _commands, app) = app();
-    tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3601, 5)))
-        .expect("send");
-    tx.send(NetEvent::Status(status())).expect("send");
-    for e in frame_events("uav1", 5) {
-        tx.send(e).expect("send");
-    }
-    let now = Rc::new(Cell::new(0.0));
-    let mut harness = harness(app, now.clone());
-    harness.run();
+    let (_tx, _commands, mut harness, now) = one_uav(false);
     harness.get_by_label("heard");
     assert!(harness.query_by_label("presence unknown").is_none());
     // The link goes: the frame is old, and the picker says so.

@@ -3,6 +3,7 @@
 use std::sync::atomic::{AtomicU16, Ordering};
 
 pub mod fleet;
+pub mod programs;
 
 /// Ports each process may hand out, in its own block below the kernel's
 /// ephemeral range (32768 and up), so a port it hands out is never one the

@@ -12,40 +12,25 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use towernav_geometry::{Datum, Geodetic};
+use towernav_tests::programs::{run_ok, short_flight, sibling_binary};
+
 /// Frames replayed: enough for the filter to settle, few enough for qemu.
 const FRAMES: &str = "45";
 
-fn binary(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("the test's path");
-    exe.parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>/deps/<test>")
-        .join(name)
-}
-
-fn run(mut cmd: Command) -> String {
-    let out = cmd.output().expect("the command starts");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "{cmd:?} failed:\n{text}");
-    text
-}
-
-/// (seq, east, north) of each estimate the daemon wrote to `jsonl`, metres.
-fn poses(jsonl: &Path) -> Vec<(u64, f64, f64)> {
+/// (seq, position) of each estimate the daemon wrote to `jsonl`.
+fn poses(jsonl: &Path) -> Vec<(u64, Geodetic)> {
     let text = std::fs::read_to_string(jsonl).expect("the daemon's JSON lines");
     text.lines()
         .map(|line| {
             let p: serde_json::Value = serde_json::from_str(line).expect("a JSON line");
-            let lat = p["lat_deg"].as_f64().expect("lat");
-            let lon = p["lon_deg"].as_f64().expect("lon");
-            // Metres on the spot: the flight spans 60 m.
-            let north = lat * 111_320.0;
-            let east = lon * 111_320.0 * lat.to_radians().cos();
-            (p["seq"].as_u64().expect("seq"), east, north)
+            let at = Geodetic::new(
+                p["lat_deg"].as_f64().expect("lat"),
+                p["lon_deg"].as_f64().expect("lon"),
+                p["alt_m"].as_f64().expect("alt"),
+            )
+            .expect("a place");
+            (p["seq"].as_u64().expect("seq"), at)
         })
         .collect()
 }
@@ -72,20 +57,10 @@ fn the_aarch64_daemon_under_qemu_replays_a_flight_as_the_x86_64_one_does() {
         "not an aarch64 ELF"
     );
     let dir = tempfile::tempdir().expect("tempdir");
-    let flight = dir.path().join("flight");
-    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/arm-pass.toml");
-    let mut sim = Command::new(binary("towernav-sim"));
-    sim.arg("flight")
-        .arg("--plan")
-        .arg(&plan)
-        .args(["--seed", "5", "--images", "--out"])
-        .arg(&flight);
-    run(sim);
-    let config = flight.join("replay.toml");
+    let config = short_flight().join("replay.toml");
     let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
     // The onboard `run`, every frame, as the packaged service runs it.
-    let replay = |program: Command, out: &Path| {
-        let mut cmd = program;
+    let replay = |mut cmd: Command, out: &Path| {
         cmd.arg("run")
             .arg("--config")
             .arg(&config)
@@ -100,7 +75,10 @@ fn the_aarch64_daemon_under_qemu_replays_a_flight_as_the_x86_64_one_does() {
         cmd
     };
     let x86_out = dir.path().join("x86_64.jsonl");
-    run(replay(Command::new(binary("towernav-edge")), &x86_out));
+    run_ok(&mut replay(
+        Command::new(sibling_binary("towernav-edge")),
+        &x86_out,
+    ));
     let arm_out = dir.path().join("aarch64.jsonl");
     let mut qemu = Command::new("qemu-aarch64");
     // The prefix holds the aarch64 C library and an ARM board's /proc/cpuinfo
@@ -109,21 +87,22 @@ fn the_aarch64_daemon_under_qemu_replays_a_flight_as_the_x86_64_one_does() {
         .arg(&sysroot)
         .arg(&edge_arm)
         .env("ORT_DYLIB_PATH", &ort);
-    run(replay(qemu, &arm_out));
+    run_ok(&mut replay(qemu, &arm_out));
 
     let x86 = poses(&x86_out);
     let arm = poses(&arm_out);
     assert!(x86.len() >= 30, "x86-64 gave {} poses", x86.len());
-    let seqs = |p: &[(u64, f64, f64)]| p.iter().map(|q| q.0).collect::<Vec<_>>();
+    let seqs = |p: &[(u64, Geodetic)]| p.iter().map(|q| q.0).collect::<Vec<_>>();
     assert_eq!(
         seqs(&arm),
         seqs(&x86),
         "the two builds fixed different frames"
     );
+    let datum = Datum::new(x86[0].1);
     let worst = x86
         .iter()
         .zip(&arm)
-        .map(|(a, b)| (a.1 - b.1).hypot(a.2 - b.2))
+        .map(|(a, b)| (datum.to_enu(&a.1) - datum.to_enu(&b.1)).xy().norm())
         .fold(0.0, f64::max);
     eprintln!(
         "aarch64 under qemu against x86-64: {} poses, largest horizontal difference {worst:.4} m",

@@ -10,29 +10,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn output(cmd: &mut Command) -> (bool, String) {
-    let out = cmd.output().expect("the command starts");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
-}
-
-fn ok(cmd: &mut Command) -> String {
-    let (success, text) = output(cmd);
-    assert!(success, "{cmd:?} failed:\n{text}");
-    text
-}
-
-fn binary(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("the test's path");
-    exe.parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>/deps/<test>")
-        .join(name)
-}
+use towernav_tests::programs::{output, run_ok as ok, short_flight};
 
 const FILES: [&str; 8] = [
     "usr/bin/towernav-edge",
@@ -204,20 +182,12 @@ fn configures_a_service_user(deb: &Path) {
 /// The packaged daemon, runtime and models on a short rendered flight.
 fn starts_from_the_package(root: &Path) {
     let dir = tempfile::tempdir().expect("tempdir");
-    let flight = dir.path().join("flight");
-    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/arm-pass.toml");
-    ok(Command::new(binary("towernav-sim"))
-        .arg("flight")
-        .arg("--plan")
-        .arg(&plan)
-        .args(["--seed", "5", "--images", "--out"])
-        .arg(&flight));
     let jsonl = dir.path().join("poses.jsonl");
     let models = root.join("usr/share/towernav/models");
     let log = ok(Command::new(root.join("usr/bin/towernav-edge"))
         .arg("run")
         .arg("--config")
-        .arg(flight.join("replay.toml"))
+        .arg(short_flight().join("replay.toml"))
         .arg("--model")
         .arg(models.join("towers-int8.onnx"))
         .arg("--type-model")

@@ -22,6 +22,7 @@ use std::sync::OnceLock;
 use towernav_geometry::Geodetic;
 use towernav_sim::waypoints::FlightPlan;
 use towernav_sim::{Scenario, World};
+use towernav_tests::programs::sibling_binary;
 
 /// The camera clock's lead of the log's, as `towernav-sim flight` writes it.
 const TLOG_OFFSET_S: &str = "12.5";
@@ -47,24 +48,8 @@ const BARREL: [f64; 5] = [-0.28, 0.08, 1e-3, -2e-3, -0.01];
 const WIDTH: u32 = 960;
 const HEIGHT: u32 = 540;
 
-/// A sibling binary of this test's (`target/<profile>/NAME`).
-fn binary(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("the test's path");
-    let dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>/deps/<test>");
-    let path = dir.join(name);
-    assert!(
-        path.is_file(),
-        "{} is not built: run `cargo test --workspace` (or build it first)",
-        path.display()
-    );
-    path
-}
-
 fn run(program: &str, args: &[&str]) -> Output {
-    Command::new(binary(program))
+    Command::new(sibling_binary(program))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR").to_owned() + "/..")
         .output()

@@ -17,6 +17,18 @@ use crate::system_packages::{ensure_file, ensure_program};
 use crate::{cargo_with, onnxruntime_from_wheel, run, target_dir};
 
 pub const AARCH64: &str = "aarch64-unknown-linux-gnu";
+/// The onboard programs, as cargo arguments: the edge without its demo
+/// feature, `towernav-db` with its command line, `towernav-fleet`.
+pub const ONBOARD: [&str; 8] = [
+    "-p",
+    "towernav-edge",
+    "-p",
+    "towernav-landmark-db",
+    "--features",
+    "towernav-landmark-db/cli",
+    "-p",
+    "towernav-fleet",
+];
 /// Where Debian's cross packages put the aarch64 C library and loader.
 pub const AARCH64_SYSROOT: &str = "/usr/aarch64-linux-gnu";
 
@@ -79,19 +91,10 @@ pub fn cross(root: &Path, arch: &str) -> anyhow::Result<CrossBuild> {
     cargo_with(
         root,
         &[
-            "build",
-            "--release",
-            "--target",
-            AARCH64,
-            "-p",
-            "towernav-edge",
-            "-p",
-            "towernav-landmark-db",
-            "--features",
-            "towernav-landmark-db/cli",
-            "-p",
-            "towernav-fleet",
-        ],
+            &["build", "--release", "--target", AARCH64][..],
+            &ONBOARD[..],
+        ]
+        .concat(),
         &[
             (
                 "CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER",

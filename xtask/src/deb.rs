@@ -57,18 +57,7 @@ pub fn deb(root: &Path, arch: &str) -> anyhow::Result<PathBuf> {
         "amd64" => {
             cargo(
                 root,
-                &[
-                    "build",
-                    "--release",
-                    "-p",
-                    "towernav-edge",
-                    "-p",
-                    "towernav-landmark-db",
-                    "--features",
-                    "towernav-landmark-db/cli",
-                    "-p",
-                    "towernav-fleet",
-                ],
+                &[&["build", "--release"][..], &cross::ONBOARD[..]].concat(),
             )?;
             (target_dir(root).join("release"), ensure_onnxruntime(root)?)
         }
