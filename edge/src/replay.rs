@@ -78,7 +78,7 @@ impl Recording {
         anyhow::ensure!(
             matches!(config.attitude.kind, AttitudeKind::Log | AttitudeKind::Csv)
                 && config.attitude.path.is_some(),
-            "a recording needs its flight log (--log)"
+            "a recording needs its flight log (--log; a GoPro video with GPMF telemetry is its own, this one has none)"
         );
         let mut config = config.clone();
         let (width, height) = recorded_size(&config)?;
@@ -88,7 +88,9 @@ impl Recording {
         let attitude = open_attitude(&config.attitude)?;
         check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
         let AttitudeSource::Log { log, offset_s } = attitude else {
-            anyhow::bail!("a recording needs its flight log (--log)");
+            anyhow::bail!(
+                "a recording needs its flight log (--log; a GoPro video with GPMF telemetry is its own, this one has none)"
+            );
         };
         Ok(Self {
             config,

@@ -1,8 +1,9 @@
 //! What a flight log says about the UAV: its attitude and, where present,
 //! its GNSS fixes and barometric altitude, on the autopilot's clock (seconds since boot), from
 //! ArduPilot DataFlash (`.bin`), MAVLink telemetry logs (`.tlog`), PX4 ULog
-//! (`.ulg`), the project's CSV and DJI's video telemetry subtitles (`.srt`,
-//! on the video's clock). Attitude between samples is slerped.
+//! (`.ulg`), the project's CSV, DJI's video telemetry subtitles (`.srt`)
+//! and a GoPro's GPMF track inside its MP4 (the last two on the video's
+//! clock). Attitude between samples is slerped.
 //!
 //! Readers take bytes; [`FlightLog::read`] is the one place that opens a file.
 
@@ -10,6 +11,7 @@ mod csv_log;
 mod dataflash;
 pub mod dji_srt;
 mod error;
+pub mod gpmf;
 mod samples;
 mod tlog;
 mod ulog;
@@ -30,6 +32,8 @@ pub enum LogFormat {
     Csv,
     /// DJI's per-frame subtitles beside a video.
     DjiSrt,
+    /// A GoPro video (`.mp4`, `.mov`) with its GPMF telemetry track.
+    GoPro,
 }
 
 impl LogFormat {
@@ -41,6 +45,7 @@ impl LogFormat {
             "ulg" => Self::Ulog,
             "csv" => Self::Csv,
             "srt" => Self::DjiSrt,
+            "mp4" | "mov" => Self::GoPro,
             _ => return None,
         })
     }
@@ -63,12 +68,35 @@ impl FlightLog {
         let bad = |reason: String| LogError::new(path, reason);
         let format = LogFormat::of(path).ok_or_else(|| {
             bad(
-                "the extension is not one of .bin (ArduPilot), .tlog (MAVLink), .ulg (PX4), .csv, .srt (DJI)"
+                "the extension is not one of .bin (ArduPilot), .tlog (MAVLink), .ulg (PX4), .csv, .srt (DJI), .mp4 (GoPro)"
                     .into(),
             )
         })?;
+        if format == LogFormat::GoPro {
+            // A video is too big to hold: read its telemetry track in place.
+            let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+            let mut reader = std::io::BufReader::new(file);
+            return Self::from_gopro(&mut reader).map_err(|e| e.in_file(path));
+        }
         let bytes = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
         Self::parse(format, &bytes).map_err(|e| e.in_file(path))
+    }
+
+    /// A GoPro video's telemetry as a flight log; refused for a video
+    /// without a GPMF track, or one whose track cannot place the camera.
+    fn from_gopro<R: std::io::Read + std::io::Seek>(r: &mut R) -> Result<Self, LogError> {
+        let telemetry = gpmf::Telemetry::read(r)?.ok_or_else(|| {
+            LogError::bare(
+                "no GPMF track in this video (a GoPro's has sample entry 'gpmd'; a DJI \
+                 video's telemetry is in the .SRT beside it)"
+                    .into(),
+            )
+        })?;
+        let mut log = gpmf::flight_log(&telemetry)?;
+        samples::tidy(&mut log.attitude, |s| s.time_s);
+        samples::tidy(&mut log.gnss, |s| s.time_s);
+        samples::tidy(&mut log.barometer, |s| s.time_s);
+        Ok(log)
     }
 
     pub fn parse(format: LogFormat, bytes: &[u8]) -> Result<Self, LogError> {
@@ -78,6 +106,7 @@ impl FlightLog {
             LogFormat::Ulog => ulog::parse(bytes)?,
             LogFormat::Csv => csv_log::parse(bytes)?,
             LogFormat::DjiSrt => dji_srt::parse(bytes)?,
+            LogFormat::GoPro => Self::from_gopro(&mut std::io::Cursor::new(bytes))?,
         };
         samples::tidy(&mut log.attitude, |s| s.time_s);
         samples::tidy(&mut log.gnss, |s| s.time_s);
@@ -91,6 +120,7 @@ impl FlightLog {
                     LogFormat::Ulog => "vehicle_attitude",
                     LogFormat::Csv => "rows of time_s,roll_deg,pitch_deg,heading_deg",
                     LogFormat::DjiSrt => "gimbal angles",
+                    LogFormat::GoPro => "ATTD, or GRAV with a moving GPS track",
                 }
             )));
         }

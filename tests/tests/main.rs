@@ -11,6 +11,7 @@ mod fleet_attacks;
 mod fleet_security;
 mod flight_logs;
 mod flight_replay;
+mod gopro_telemetry;
 mod ground_station_net;
 mod invariants;
 mod landmark_import;

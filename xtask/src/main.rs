@@ -219,13 +219,16 @@ const PYMAVLINK_VERSION: &str = "2.4.50";
 const PYYAML_VERSION: &str = "6.0.3";
 /// eclipse-zenoh for Python, an independent client of a secured fleet.
 const ECLIPSE_ZENOH_VERSION: &str = "1.10.2";
+/// GoPro's own GPMF parser (its C library, bound for Python), to check ours.
+const PY_GPMF_PARSER_VERSION: &str = "0.1.1";
 
 /// `.pydeps/` under the workspace, holding pymavlink from the Python package
 /// index; the tests find it through `TOWERNAV_PYTHONPATH`.
 fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
     let dir = root.join(".pydeps");
     // PyYAML beside it: the training data mixer's test reads data.yaml files;
-    // and eclipse-zenoh, a client of a secured fleet that is not ours.
+    // eclipse-zenoh, a client of a secured fleet that is not ours; and
+    // GoPro's GPMF parser.
     let installed = |name: &str, version: &str| {
         let want = format!("{name}-{version}.dist-info").to_lowercase();
         std::fs::read_dir(&dir).is_ok_and(|entries| {
@@ -237,6 +240,7 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
     if installed("pymavlink", PYMAVLINK_VERSION)
         && installed("pyyaml", PYYAML_VERSION)
         && installed("eclipse_zenoh", ECLIPSE_ZENOH_VERSION)
+        && installed("py_gpmf_parser", PY_GPMF_PARSER_VERSION)
     {
         return Ok(());
     }
@@ -253,9 +257,10 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
         .arg(&dir)
         .arg(format!("pymavlink=={PYMAVLINK_VERSION}"))
         .arg(format!("pyyaml=={PYYAML_VERSION}"))
-        .arg(format!("eclipse-zenoh=={ECLIPSE_ZENOH_VERSION}")))?;
+        .arg(format!("eclipse-zenoh=={ECLIPSE_ZENOH_VERSION}"))
+        .arg(format!("py-gpmf-parser=={PY_GPMF_PARSER_VERSION}")))?;
     eprintln!(
-        "xtask: pymavlink {PYMAVLINK_VERSION}, PyYAML {PYYAML_VERSION} and eclipse-zenoh {ECLIPSE_ZENOH_VERSION} in {}",
+        "xtask: pymavlink {PYMAVLINK_VERSION}, PyYAML {PYYAML_VERSION}, eclipse-zenoh {ECLIPSE_ZENOH_VERSION} and py-gpmf-parser {PY_GPMF_PARSER_VERSION} in {}",
         dir.display()
     );
     Ok(())

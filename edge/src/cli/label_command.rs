@@ -17,9 +17,9 @@ pub struct LabelArgs {
     #[command(flatten)]
     recording: RecordingArgs,
     /// The flight log with attitude and GNSS: ArduPilot .bin, MAVLink .tlog,
-    /// PX4 .ulg or CSV.
+    /// PX4 .ulg, CSV, DJI .srt or a GoPro .mp4; default: a GoPro --video's own.
     #[arg(long)]
-    log: PathBuf,
+    log: Option<PathBuf>,
     /// Label every n-th frame.
     #[arg(long, default_value_t = 5)]
     every: u64,
@@ -56,8 +56,13 @@ impl LabelArgs {
         );
         let mut c = EdgeConfig::default();
         r.apply(&mut c);
+        let log = r.log_or_gopro(self.log.as_ref()).ok_or_else(|| {
+            anyhow::anyhow!(
+                "give the flight log with attitude and GNSS: --log (a GoPro video with GPMF telemetry needs none)"
+            )
+        })?;
         c.attitude.kind = AttitudeKind::Log;
-        c.attitude.path = Some(self.log.clone());
+        c.attitude.path = Some(log);
         c.detector.classify_types = false;
         if let Some(m) = &self.model {
             c.detector.model = m.clone();

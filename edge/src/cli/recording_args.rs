@@ -8,7 +8,8 @@ use towernav_edge::daemon::config::{EdgeConfig, SourceKind};
 #[derive(Args)]
 pub struct RecordingArgs {
     /// The camera's video (anything ffmpeg reads); frames are timed by its
-    /// presentation timestamps.
+    /// presentation timestamps. A GoPro video is its own flight log (its
+    /// GPMF telemetry) unless --log names another.
     #[arg(long, conflicts_with = "images")]
     pub video: Option<PathBuf>,
     /// A folder of the camera's images, in name order.
@@ -34,6 +35,16 @@ pub struct RecordingArgs {
 }
 
 impl RecordingArgs {
+    /// The flight log: `log` where given, else a GoPro video's own GPMF track.
+    pub fn log_or_gopro(&self, log: Option<&PathBuf>) -> Option<PathBuf> {
+        log.cloned().or_else(|| {
+            self.video
+                .as_ref()
+                .filter(|v| towernav_flightlog::gpmf::Telemetry::in_video(v))
+                .cloned()
+        })
+    }
+
     /// These flags over `c`.
     pub fn apply(&self, c: &mut EdgeConfig) {
         if let Some(v) = &self.video {

@@ -24,7 +24,8 @@ pub struct ReplayArgs {
     config: Option<PathBuf>,
     #[command(flatten)]
     recording: RecordingArgs,
-    /// The flight log: ArduPilot .bin, MAVLink .tlog, PX4 .ulg or CSV.
+    /// The flight log: ArduPilot .bin, MAVLink .tlog, PX4 .ulg, CSV, DJI .srt
+    /// or a GoPro .mp4; default: a GoPro --video's own GPMF telemetry.
     #[arg(long)]
     log: Option<PathBuf>,
     /// Where the replay starts, lat_deg,lon_deg,alt_m (ellipsoid); default:
@@ -62,9 +63,9 @@ impl ReplayArgs {
             None => EdgeConfig::default(),
         };
         self.recording.apply(&mut c);
-        if let Some(v) = &self.log {
+        if let Some(v) = self.recording.log_or_gopro(self.log.as_ref()) {
             c.attitude.kind = AttitudeKind::Log;
-            c.attitude.path = Some(v.clone());
+            c.attitude.path = Some(v);
         }
         if let Some(t) = self.takeoff {
             c.pipeline.takeoff = Some(t);
