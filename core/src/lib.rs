@@ -24,6 +24,7 @@ pub mod optical_flow;
 pub mod pipeline;
 pub mod replica;
 pub mod survey_labels;
+pub mod tower_map;
 pub mod tracker;
 pub mod wire;
 

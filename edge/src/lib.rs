@@ -11,6 +11,7 @@ pub mod daemon;
 pub mod edge_cmd;
 pub mod error;
 pub mod landmark_sync;
+pub mod map_towers;
 #[cfg(not(feature = "demo"))]
 pub mod no_sim;
 pub mod node;

@@ -41,6 +41,12 @@ enum Command {
     /// as a YOLO dataset with a report of every label.
     #[cfg(feature = "demo")]
     Label(cli::label_command::LabelArgs),
+    /// Towers measured from a survey flight: feet and heights from many views,
+    /// held against the landmark file (confirmed, missed, new), written as
+    /// an importable CSV and a GeoJSON for review.
+    #[cfg(feature = "demo")]
+    #[command(name = "map-towers")]
+    MapTowers(cli::map_towers_command::MapTowersArgs),
     /// Reviewed labels back from COCO JSON (CVAT, Label Studio) into a
     /// labelled dataset's YOLO files.
     #[cfg(feature = "demo")]
@@ -75,6 +81,8 @@ fn main() -> anyhow::Result<()> {
         Command::Label(label) => return label.run(),
         #[cfg(feature = "demo")]
         Command::LabelImport(import) => return import.run(),
+        #[cfg(feature = "demo")]
+        Command::MapTowers(map) => return map.run(),
         Command::Run(args) => (args, false),
         Command::Demo(args) => (args, true),
     };

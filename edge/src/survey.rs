@@ -52,7 +52,10 @@ pub struct LabelOptions {
     pub out: PathBuf,
 }
 
-fn survey_towers(records: &[LandmarkRecord], datum: &Datum) -> anyhow::Result<Vec<SurveyTower>> {
+pub(crate) fn survey_towers(
+    records: &[LandmarkRecord],
+    datum: &Datum,
+) -> anyhow::Result<Vec<SurveyTower>> {
     records
         .iter()
         .map(|r| {

@@ -190,6 +190,32 @@ fn set_line_yaws(towers: &mut [SimTower], line: &[usize]) {
     }
 }
 
+/// The towers as a poor map holds them: every other one left out, the rest
+/// moved 5-10 m in a direction drawn from `seed` (heights kept).
+pub fn degraded(records: &[LandmarkRecord], seed: u64) -> Vec<LandmarkRecord> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    records
+        .iter()
+        .step_by(2)
+        .map(|r| {
+            let distance = rng.random_range(5.0..10.0);
+            let direction: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+            let datum = Datum::new(r.foot());
+            let moved = datum.to_geodetic(&Point3::new(
+                distance * direction.sin(),
+                distance * direction.cos(),
+                0.0,
+            ));
+            LandmarkRecord {
+                lat_deg: moved.lat_deg,
+                lon_deg: moved.lon_deg,
+                ..r.clone()
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -253,5 +279,19 @@ mod tests {
             World::from_landmarks(&[]),
             Err(LandmarkWorldError::Empty)
         ));
+    }
+
+    #[test]
+    fn a_degraded_map_keeps_every_other_tower_moved_5_to_10_m() {
+        let towers = World::paper_field().landmarks();
+        let poor = degraded(&towers, 3);
+        assert_eq!(poor.len(), towers.len().div_ceil(2));
+        for p in &poor {
+            let t = towers.iter().find(|t| t.id == p.id).expect("same ids");
+            let d = Datum::new(t.foot()).to_enu(&p.foot()).coords.norm();
+            assert!((5.0..10.0).contains(&d), "{} moved {d:.2} m", p.id);
+            assert_eq!(p.height_m, t.height_m);
+        }
+        assert_eq!(degraded(&towers, 3), poor, "seeded");
     }
 }

@@ -93,6 +93,11 @@ enum Command {
     World {
         #[command(flatten)]
         world: WorldArg,
+        /// Write the towers as a poor map would hold them: every other one
+        /// left out, the rest moved 5-10 m in a direction drawn from this
+        /// seed (the input of a `towernav-edge map-towers` trial).
+        #[arg(long, value_name = "SEED")]
+        degrade: Option<u64>,
         /// Output CSV path; `-` for standard output.
         #[arg(long, default_value = "-")]
         out: PathBuf,
@@ -206,8 +211,15 @@ fn main() -> anyhow::Result<()> {
         .with_writer(std::io::stderr)
         .init();
     match Cli::parse().command {
-        Command::World { world, out } => {
-            let landmarks = world.world()?.landmarks();
+        Command::World {
+            world,
+            degrade,
+            out,
+        } => {
+            let mut landmarks = world.world()?.landmarks();
+            if let Some(seed) = degrade {
+                landmarks = towernav_sim::landmark_world::degraded(&landmarks, seed);
+            }
             if out.as_os_str() == "-" {
                 towernav_landmark_db::export_csv(&landmarks, std::io::stdout().lock())?;
             } else {

@@ -23,6 +23,7 @@ mod pipeline;
 mod real_data;
 mod replay;
 mod sim_source;
+mod tower_mapping;
 mod tracking;
 mod training_mix;
 mod video_source;

@@ -1,0 +1,310 @@
+//! One tower from many views: its foot where the views' bearings cross, its
+//! height from the box's top and foot rows at that range.
+//!
+//! A tower stands upright, so each view's ray through the box's centre
+//! fixes a vertical plane, a line on the ground; the foot is the robust
+//! (Huber, iteratively reweighted) least-squares crossing of those lines,
+//! each weighted by its range (a bearing error moves the line more far
+//! away) and the camera's position error. With the foot known, each uncut
+//! view's top and foot rays meet the tower's axis at a height; the median
+//! over views is the foot's elevation and the tower's height.
+
+use nalgebra::{Matrix2, Point2, Point3, Vector2, Vector3};
+
+/// One view of one tower: the camera's centre and three rays (world frame,
+/// lens undone) through the box's centre, top-middle and foot-middle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TowerView {
+    pub time_s: f64,
+    pub camera_in_world: Point3<f64>,
+    pub centre_ray: Vector3<f64>,
+    pub top_ray: Vector3<f64>,
+    pub foot_ray: Vector3<f64>,
+    /// The box touches the frame's top or bottom edge: its rows are not the
+    /// tower's top and foot.
+    pub cut: bool,
+}
+
+/// How much to trust a view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriangulationParams {
+    /// One-sigma bearing error of a box's centre (detector and attitude), rad.
+    pub bearing_sigma_rad: f64,
+    /// One-sigma horizontal error of the camera's position (GNSS), m.
+    pub position_sigma_m: f64,
+    /// How long the GNSS error takes to forget itself, s: views closer in
+    /// time share it, so it shrinks with the passes' length, not the
+    /// number of frames.
+    pub position_correlation_s: f64,
+    /// Bearing errors closer in time than this are one error, s.
+    pub bearing_correlation_s: f64,
+    /// The views' bearings must spread this much, rad: parallel lines
+    /// cross anywhere.
+    pub min_spread_rad: f64,
+    pub min_views: usize,
+    /// Huber's threshold, in sigmas.
+    pub huber_k: f64,
+    /// Fewer views than this share agreeing (3 sigma) is no tower: a
+    /// track that jumped between towers, or boxes on clutter.
+    pub min_inlier_share: f64,
+}
+
+impl Default for TriangulationParams {
+    fn default() -> Self {
+        Self {
+            bearing_sigma_rad: 0.5_f64.to_radians(),
+            position_sigma_m: 1.5,
+            position_correlation_s: 10.0,
+            bearing_correlation_s: 3.0,
+            min_spread_rad: 10_f64.to_radians(),
+            min_views: 5,
+            huber_k: 2.0,
+            min_inlier_share: 0.7,
+        }
+    }
+}
+
+/// A tower measured from its views.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TowerEstimate {
+    /// The foot: (east, north) from the crossing, up from the median view.
+    pub foot_in_world: Point3<f64>,
+    /// Covariance of (east, north), m^2.
+    pub covariance_en: Matrix2<f64>,
+    /// `None` where no view saw the whole tower.
+    pub height_m: Option<f64>,
+    /// One-sigma of the height (and of the foot's elevation), from the
+    /// views' spread.
+    pub height_sigma_m: f64,
+    pub views: usize,
+    pub height_views: usize,
+    /// Largest angle between two views' bearings, rad.
+    pub spread_rad: f64,
+    /// Share of the views whose line passes within 3 sigma of the foot.
+    pub inlier_share: f64,
+}
+
+impl TowerEstimate {
+    /// One-sigma horizontal error: the ellipse's major semi-axis.
+    pub fn sigma_horizontal_m(&self) -> f64 {
+        self.covariance_en
+            .symmetric_eigenvalues()
+            .max()
+            .max(0.0)
+            .sqrt()
+    }
+}
+
+/// A view's ground line: a point and the unit normal of its bearing.
+fn line(v: &TowerView) -> Option<(Point2<f64>, Vector2<f64>, f64)> {
+    let d = v.centre_ray.xy();
+    let n = d.norm();
+    if n < 1e-9 {
+        return None; // looking straight down: no bearing
+    }
+    let bearing = d / n;
+    Some((
+        v.camera_in_world.xy(),
+        Vector2::new(-bearing.y, bearing.x),
+        bearing.y.atan2(bearing.x),
+    ))
+}
+
+/// Where the views' lines cross, with its covariance; `None` for too few
+/// views, too little spread or a crossing behind the cameras.
+pub fn triangulate(views: &[TowerView], p: &TriangulationParams) -> Option<TowerEstimate> {
+    let lines: Vec<_> = views.iter().filter_map(line).collect();
+    if lines.len() < p.min_views.max(2) {
+        return None;
+    }
+    let spread = bearing_spread(lines.iter().map(|l| l.2));
+    if spread < p.min_spread_rad {
+        return None;
+    }
+    // Start unweighted; then weight by range and down-weight outliers.
+    let mut at = solve(&lines, |_| 1.0)?;
+    let mut info = Matrix2::zeros();
+    let sigma_at = |at: Point2<f64>, c: &Point2<f64>| {
+        let range = (at - c).norm();
+        (range * p.bearing_sigma_rad).hypot(p.position_sigma_m)
+    };
+    for _ in 0..10 {
+        let sigma = |c: &Point2<f64>| sigma_at(at, c);
+        let next = solve(&lines, |(c, n, _)| {
+            let s = sigma(c);
+            let r = n.dot(&(at - c)).abs() / s;
+            let huber = if r <= p.huber_k { 1.0 } else { p.huber_k / r };
+            huber / (s * s)
+        })?;
+        info = lines.iter().fold(Matrix2::zeros(), |m, (c, n, _)| {
+            let s = ((at - c).norm() * p.bearing_sigma_rad).max(1e-3);
+            m + n * n.transpose() / (s * s)
+        });
+        let moved = (next - at).norm();
+        at = next;
+        if moved < 1e-4 {
+            break;
+        }
+    }
+    // Every view must look towards the crossing, not away from it.
+    let ahead = views
+        .iter()
+        .filter(|v| v.centre_ray.xy().dot(&(at - v.camera_in_world.xy())) > 0.0)
+        .count();
+    if ahead * 10 < views.len() * 9 {
+        return None;
+    }
+    let inliers = lines
+        .iter()
+        .filter(|(c, n, _)| n.dot(&(at - c)).abs() <= 3.0 * sigma_at(at, c))
+        .count();
+    let inlier_share = inliers as f64 / lines.len() as f64;
+    if inlier_share < p.min_inlier_share {
+        return None;
+    }
+    // Bearings: the fit's information, shared by the views of one
+    // correlation time. Position: the GNSS error, averaged only over the
+    // stretches of flight it forgets itself in.
+    let times = || views.iter().map(|v| v.time_s);
+    let bearing_share = lines.len() as f64 / distinct_bins(times(), p.bearing_correlation_s);
+    let position_samples = distinct_bins(times(), 2.0 * p.position_correlation_s);
+    let covariance_en = info.try_inverse()? * bearing_share
+        + Matrix2::identity() * p.position_sigma_m.powi(2) / position_samples;
+    let (foot_z, height, spread_sigma, height_views) = heights(views, &at, p.bearing_correlation_s);
+    // A foot misplaced along the bearing scales the height with the range.
+    let ranges: Vec<f64> = views
+        .iter()
+        .map(|v| (at - v.camera_in_world.xy()).norm())
+        .collect();
+    let along = covariance_en.symmetric_eigenvalues().max().max(0.0).sqrt();
+    let height_sigma = match (height, median(&ranges)) {
+        (Some(h), Some(r)) if r > 1.0 => spread_sigma.hypot(h * along / r),
+        _ => spread_sigma,
+    };
+    Some(TowerEstimate {
+        foot_in_world: Point3::new(at.x, at.y, foot_z?),
+        covariance_en,
+        height_m: height,
+        height_sigma_m: height_sigma,
+        views: lines.len(),
+        height_views,
+        spread_rad: spread,
+        inlier_share,
+    })
+}
+
+/// How many `bin_s`-long stretches of time the views fall in (at least 1).
+fn distinct_bins(times: impl Iterator<Item = f64>, bin_s: f64) -> f64 {
+    let mut bins: Vec<i64> = times
+        .map(|t| (t / bin_s.max(1e-3)).floor() as i64)
+        .collect();
+    bins.sort_unstable();
+    bins.dedup();
+    bins.len().max(1) as f64
+}
+
+/// Weighted least squares of the lines' normal distances.
+fn solve(
+    lines: &[(Point2<f64>, Vector2<f64>, f64)],
+    weight: impl Fn(&(Point2<f64>, Vector2<f64>, f64)) -> f64,
+) -> Option<Point2<f64>> {
+    let (mut a, mut b) = (Matrix2::zeros(), Vector2::zeros());
+    for l in lines {
+        let (c, n, _) = l;
+        let w = weight(l);
+        a += w * n * n.transpose();
+        b += w * n * n.dot(&c.coords);
+    }
+    a.try_inverse().map(|inv| Point2::from(inv * b))
+}
+
+/// The widest angle between two bearings (as lines: 0 to 90 degrees).
+fn bearing_spread(bearings: impl Iterator<Item = f64>) -> f64 {
+    let b: Vec<f64> = bearings.collect();
+    let mut widest: f64 = 0.0;
+    for (i, x) in b.iter().enumerate() {
+        for y in &b[i + 1..] {
+            let d = (x - y).rem_euclid(std::f64::consts::PI);
+            widest = widest.max(d.min(std::f64::consts::PI - d));
+        }
+    }
+    widest
+}
+
+/// Height where a ray from `c` along `ray` passes the axis at `axis`.
+fn height_on_axis(c: &Point3<f64>, ray: &Vector3<f64>, axis: &Point2<f64>) -> Option<f64> {
+    let h = ray.xy();
+    let hn = h.norm();
+    if hn < 1e-9 {
+        return None;
+    }
+    let along = (axis - c.xy()).dot(&h) / hn;
+    (along > 0.0).then(|| c.z + ray.z * along / hn)
+}
+
+/// The foot's elevation (median of every view's foot row, uncut views
+/// first), the height (median over uncut views), its one-sigma from the
+/// spread (1.4826 MAD over the square root of the stretches of
+/// `correlation_s` the views fall in, at least 0.1 m), and how many views
+/// gave a height.
+fn heights(
+    views: &[TowerView],
+    axis: &Point2<f64>,
+    correlation_s: f64,
+) -> (Option<f64>, Option<f64>, f64, usize) {
+    let mut feet = Vec::new();
+    let mut heights = Vec::new();
+    let mut times = Vec::new();
+    for v in views {
+        let foot = height_on_axis(&v.camera_in_world, &v.foot_ray, axis);
+        let top = height_on_axis(&v.camera_in_world, &v.top_ray, axis);
+        if v.cut {
+            continue;
+        }
+        if let (Some(f), Some(t)) = (foot, top) {
+            feet.push(f);
+            heights.push(t - f);
+            times.push(v.time_s);
+        }
+    }
+    if feet.is_empty() {
+        // Only cut views: the foot row is still the best ground there is.
+        feet = views
+            .iter()
+            .filter_map(|v| height_on_axis(&v.camera_in_world, &v.foot_ray, axis))
+            .collect();
+    }
+    let n = heights.len();
+    let sigma = match n {
+        0 => f64::INFINITY,
+        _ => {
+            let independent = distinct_bins(times.into_iter(), correlation_s);
+            (1.4826 * mad(&heights) / independent.sqrt()).max(0.1)
+        }
+    };
+    (median(&feet), median(&heights), sigma, n)
+}
+
+pub fn median(v: &[f64]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let m = s.len() / 2;
+    Some(if s.len() % 2 == 1 {
+        s[m]
+    } else {
+        (s[m - 1] + s[m]) / 2.0
+    })
+}
+
+fn mad(v: &[f64]) -> f64 {
+    let Some(m) = median(v) else { return 0.0 };
+    let d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    median(&d).unwrap_or(0.0)
+}
+
+#[cfg(test)]
+#[path = "triangulate_tests.rs"]
+mod tests;

@@ -1,0 +1,127 @@
+//! `towernav-edge map-towers`: towers measured from a survey flight (desk
+//! build, beside `replay` and `label`).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use towernav_core::tower_map::{MatchParams, TriangulationParams, Verdict};
+use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig};
+use towernav_edge::map_towers::{MapOptions, SCORE_MATCH_M, SCORE_MIN_VIEWS, map_towers};
+
+use crate::cli::recording_args::RecordingArgs;
+
+/// A survey flight (GNSS still working) into measured towers: each tracked
+/// tower's foot from its bearings over many views, its height from the
+/// box's top and foot rows; against the landmark file where one is given
+/// (confirmed, missed, new).
+#[derive(Args)]
+pub struct MapTowersArgs {
+    #[command(flatten)]
+    recording: RecordingArgs,
+    /// The flight log with attitude and GNSS: ArduPilot .bin, MAVLink .tlog,
+    /// PX4 .ulg, CSV, DJI .srt or a GoPro .mp4; default: a GoPro --video's own.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// One-sigma horizontal error of the log's GNSS, metres.
+    #[arg(long, default_value_t = 1.5)]
+    gnss_sigma_m: f64,
+    /// One-sigma bearing error of a box's centre (attitude and detector), degrees.
+    #[arg(long, default_value_t = 0.5)]
+    bearing_sigma_deg: f64,
+    /// A tower needs this many views.
+    #[arg(long, default_value_t = 5)]
+    min_views: usize,
+    /// Towers placed worse than this (one sigma, metres) are reported as
+    /// uncertain instead of proposed.
+    #[arg(long, default_value_t = 3.0)]
+    max_sigma_m: f64,
+    /// The true towers (a rendered flight's towers.csv): score the proposals
+    /// against them.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+    /// YOLO model; default: the daemon's.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Folder for towers-mapped.csv, towers-mapped.geojson and report.csv.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+impl MapTowersArgs {
+    pub fn run(&self) -> anyhow::Result<()> {
+        let r = &self.recording;
+        anyhow::ensure!(
+            r.video.is_some() || r.images.is_some(),
+            "give the survey flight: --video FILE or --images DIR"
+        );
+        anyhow::ensure!(
+            r.camera.is_some(),
+            "mapping needs the calibration (--camera)"
+        );
+        anyhow::ensure!(
+            self.gnss_sigma_m >= 0.0 && self.bearing_sigma_deg > 0.0 && self.min_views >= 2,
+            "--gnss-sigma-m must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
+        );
+        let mut c = EdgeConfig::default();
+        r.apply(&mut c);
+        let log = r.log_or_gopro(self.log.as_ref()).ok_or_else(|| {
+            anyhow::anyhow!(
+                "give the flight log with attitude and GNSS: --log (a GoPro video with GPMF telemetry needs none)"
+            )
+        })?;
+        c.attitude.kind = AttitudeKind::Log;
+        c.attitude.path = Some(log);
+        c.detector.classify_types = false;
+        if let Some(m) = &self.model {
+            c.detector.model = m.clone();
+        }
+        let options = MapOptions {
+            triangulation: TriangulationParams {
+                bearing_sigma_rad: self.bearing_sigma_deg.to_radians(),
+                position_sigma_m: self.gnss_sigma_m,
+                min_views: self.min_views,
+                ..TriangulationParams::default()
+            },
+            max_sigma_m: self.max_sigma_m,
+            truth: self.truth.clone(),
+            matching: MatchParams::default(),
+            out: self.out.clone(),
+        };
+        let bar = towernav_eval::progress::bar(0, "frames");
+        let run = map_towers(&c, &options, |seq, total| {
+            if let Some(n) = total {
+                bar.set_length(n);
+            }
+            bar.set_position(seq + 1);
+        })?;
+        bar.finish_and_clear();
+        let confirmed = run
+            .report
+            .verdicts
+            .iter()
+            .filter(|v| matches!(v, Verdict::Confirms { .. }))
+            .count();
+        println!(
+            "{} frames ({} without a pose), {} tracks: {} towers measured: {confirmed} confirm the landmark file, {} new, {} too uncertain to propose; {} known towers missed (in view, not measured), {} never in view",
+            run.frames,
+            run.without_pose,
+            run.tracks,
+            run.towers.len(),
+            run.towers.len() - confirmed,
+            run.uncertain.len(),
+            run.report.missed.len(),
+            run.report.not_seen.len(),
+        );
+        if let Some(s) = &run.score {
+            println!(
+                "against the truth: {}/{} towers seen in {SCORE_MIN_VIEWS}+ frames found (within {SCORE_MATCH_M} m), foot RMS {:.2} m (max {:.2}), height RMS {:.2} m, {} phantoms",
+                s.found, s.seen, s.position_rms_m, s.position_max_m, s.height_rms_m, s.phantoms
+            );
+        }
+        println!(
+            "wrote {0}/towers-mapped.csv, {0}/towers-mapped.geojson, {0}/report.csv",
+            self.out.display()
+        );
+        Ok(())
+    }
+}
