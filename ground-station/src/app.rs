@@ -28,6 +28,8 @@ use crate::map_view::{self, MapState, MapTower};
 use crate::net::{NetCommand, NetLink};
 use crate::recording::ReplayPlayer;
 use crate::session_bar::{self, RecordAction};
+use crate::survey_review::{Decision, SurveyReview};
+use crate::survey_review_view::{self, SurveyAction, SurveyView};
 use crate::tiles::TileLayer;
 
 /// How far from the towers' median a tower may stand and still pull the
@@ -82,6 +84,8 @@ pub enum Tab {
     Landmarks,
     History,
     Labels,
+    /// Towers a survey flight measured, under review.
+    Survey,
 }
 
 /// How the app was started.
@@ -130,6 +134,7 @@ pub struct GsApp {
     camera: CameraState,
     editor: EditorState,
     labels: ReviewView,
+    pub survey: SurveyView,
     /// A Record was asked for and the network side has not answered yet.
     record_waiting: bool,
     record_path: String,
@@ -173,6 +178,7 @@ impl GsApp {
             camera: CameraState::default(),
             editor: EditorState::default(),
             labels: ReviewView::default(),
+            survey: SurveyView::default(),
             record_waiting: false,
             record_path: "session.mcap".into(),
             replay: None,
@@ -202,6 +208,11 @@ impl GsApp {
 
     pub fn db(&self) -> &LandmarkDb {
         &self.db
+    }
+
+    /// The stored tower the landmark form edits (`None`: it adds one).
+    pub fn editing(&self) -> Option<&str> {
+        self.editor.editing.as_deref()
     }
 
     fn reload_landmarks(&mut self) -> Result<(), DbError> {
@@ -326,6 +337,81 @@ impl GsApp {
             Tab::Labels => {
                 label_review_view::show(ui, &mut self.labels);
             }
+            Tab::Survey => {
+                let datum = self.fleet.datum;
+                if let Some(action) =
+                    survey_review_view::show(ui, &mut self.survey, &self.towers, &datum)
+                {
+                    self.apply_survey(action);
+                }
+            }
+        }
+    }
+
+    /// The survey review's actions: open a file, take a proposal into the
+    /// landmark form, or write the accepted ones as one import.
+    pub fn apply_survey(&mut self, action: SurveyAction) {
+        match action {
+            SurveyAction::Open(path) => {
+                let file = path.display().to_string();
+                let opened = std::fs::read_to_string(&path)
+                    .map_err(|e| format!("{file}: {e}"))
+                    .and_then(|text| SurveyReview::parse(&text, &file));
+                self.survey.message = Some(match opened {
+                    Ok(review) => {
+                        let text = format!(
+                            "{}: {} proposals, {} other towers listed",
+                            file,
+                            review.proposals.len(),
+                            review.others.len()
+                        );
+                        self.survey.review = Some(review);
+                        (true, text)
+                    }
+                    Err(e) => (false, e),
+                });
+            }
+            SurveyAction::Edit(i) => {
+                let Some(p) = self
+                    .survey
+                    .review
+                    .as_mut()
+                    .and_then(|r| r.proposals.get_mut(i))
+                else {
+                    return;
+                };
+                p.decision = Decision::Edited;
+                let stored = self.records.iter().find(|r| r.id == p.record.id);
+                self.editor.form = landmark_editor::Form::from_record(&p.record);
+                self.editor.editing = stored.map(|r| r.id.clone());
+                self.editor.editing_revision = stored.map(|r| r.revision);
+                self.editor.touched.clear();
+                self.tab = Tab::Landmarks;
+            }
+            SurveyAction::Apply => {
+                let Some(review) = self.survey.review.as_ref() else {
+                    return;
+                };
+                let records = review.accepted();
+                let file = format!("survey {}", review.file);
+                let parsed = towernav_landmark_db::Parsed {
+                    records,
+                    problems: Vec::new(),
+                };
+                let outcome = self.write_import(parsed, &file);
+                if let (Ok(_), Some(review)) = (&outcome, self.survey.review.as_mut()) {
+                    review.proposals.retain(|p| p.decision != Decision::Accept);
+                }
+                if let Err(e) = self.reload_landmarks() {
+                    self.fleet
+                        .notices
+                        .push(format!("reading the database: {e}"));
+                }
+                self.survey.message = Some(match outcome {
+                    Ok(text) => (true, text),
+                    Err(text) => (false, text),
+                });
+            }
         }
     }
 
@@ -335,6 +421,7 @@ impl GsApp {
             ui.selectable_value(&mut self.tab, Tab::Landmarks, "Landmarks");
             ui.selectable_value(&mut self.tab, Tab::History, "History");
             ui.selectable_value(&mut self.tab, Tab::Labels, "Labels");
+            ui.selectable_value(&mut self.tab, Tab::Survey, "Survey review");
             ui.separator();
             if let Some(player) = self.replay.as_mut() {
                 let name = self
@@ -537,35 +624,7 @@ impl GsApp {
                     return;
                 }
                 self.editor.pending_import = None;
-                let before: Result<Vec<_>, _> = parsed
-                    .records
-                    .iter()
-                    .map(|r| self.db.get(&r.id).map(|stored| (r.id.clone(), stored)))
-                    .collect();
-                let file = path.display().to_string();
-                before
-                    .map_err(|e| e.to_string())
-                    .and_then(|before| {
-                        let report = import_parsed(&mut self.db, parsed, &file, &options, &author)
-                            .map_err(|e| e.to_string())?;
-                        if !before.is_empty() {
-                            let name = path
-                                .file_name()
-                                .map_or_else(|| file.clone(), |n| n.to_string_lossy().into_owned());
-                            self.push_undo(UndoStep::Import { file: name, before });
-                        }
-                        Ok(report)
-                    })
-                    .map(|r| {
-                        let mut text = format!(
-                            "imported {} towers from {file} (revision {})",
-                            r.imported, r.revision
-                        );
-                        for w in r.warnings.iter().take(3) {
-                            text += &format!("; {}: {}", w.id, w.message);
-                        }
-                        text
-                    })
+                self.write_import(parsed, &path.display().to_string())
             }
             EditorAction::Export(path, format, false) if path.exists() => {
                 self.editor.pending_overwrite = Some((path.clone(), format));
@@ -588,6 +647,42 @@ impl GsApp {
             Ok(text) => (true, text),
             Err(text) => (false, text),
         });
+    }
+
+    /// Writes `parsed`'s towers as one import from `file`, under the
+    /// operator's name, and keeps what they were before for Undo.
+    fn write_import(
+        &mut self,
+        parsed: towernav_landmark_db::Parsed,
+        file: &str,
+    ) -> Result<String, String> {
+        let author = Author::now(&self.options.operator);
+        let options = ImportOptions {
+            osm: OsmMapping::towernav(),
+            ..ImportOptions::default()
+        };
+        let before: Vec<_> = parsed
+            .records
+            .iter()
+            .map(|r| self.db.get(&r.id).map(|stored| (r.id.clone(), stored)))
+            .collect::<Result<_, _>>()
+            .map_err(|e| e.to_string())?;
+        let report = import_parsed(&mut self.db, parsed, file, &options, &author)
+            .map_err(|e| e.to_string())?;
+        if !before.is_empty() {
+            let name = std::path::Path::new(file)
+                .file_name()
+                .map_or_else(|| file.to_owned(), |n| n.to_string_lossy().into_owned());
+            self.push_undo(UndoStep::Import { file: name, before });
+        }
+        let mut text = format!(
+            "imported {} towers from {file} (revision {})",
+            report.imported, report.revision
+        );
+        for w in report.warnings.iter().take(3) {
+            text += &format!("; {}: {}", w.id, w.message);
+        }
+        Ok(text)
     }
 
     fn export(&self, path: &std::path::Path, format: FileFormat) -> Result<String, String> {

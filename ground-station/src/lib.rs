@@ -19,6 +19,8 @@ pub mod map_view;
 pub mod net;
 pub mod recording;
 pub mod session_bar;
+pub mod survey_review;
+pub mod survey_review_view;
 #[cfg(any(test, feature = "test-support"))]
 pub mod test_support;
 pub mod tiles;

@@ -71,7 +71,6 @@ impl MapTowersArgs {
         })?;
         c.attitude.kind = AttitudeKind::Log;
         c.attitude.path = Some(log);
-        c.detector.classify_types = false;
         if let Some(m) = &self.model {
             c.detector.model = m.clone();
         }
