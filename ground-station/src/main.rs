@@ -9,6 +9,7 @@ use clap::Parser;
 use towernav_ground_station::app::{GsApp, GsOptions, Tab};
 use towernav_ground_station::net::{self, NetLink};
 use towernav_ground_station::recording::{self, ReplayPlayer};
+use towernav_ground_station::survey_review_view::SurveyAction;
 use towernav_landmark_db::{Author, LandmarkDb, import_csv};
 use towernav_protocol::NodeId;
 use towernav_protocol::security::Credentials;
@@ -53,9 +54,14 @@ struct Cli {
     /// Replay speed (1 = as recorded, 0 = as fast as possible).
     #[arg(long, default_value_t = 1.0)]
     replay_speed: f64,
-    /// The tab the window opens on (with --labels, the Labels tab).
-    #[arg(long, value_parser = ["map", "landmarks", "history", "labels"])]
+    /// The tab the window opens on (with --labels, the Labels tab; with
+    /// --survey, the Survey review tab).
+    #[arg(long, value_parser = ["map", "landmarks", "history", "labels", "survey"])]
     tab: Option<String>,
+    /// Review a survey's measured towers (`towernav-edge map-towers`'s
+    /// towers-mapped.geojson): accept, reject or edit each before it is written.
+    #[arg(long)]
+    survey: Option<PathBuf>,
     /// Review a labelled dataset (`towernav-edge label`'s output folder, or
     /// images/ with labels/): accept, reject and move its boxes, frame by frame.
     #[arg(long)]
@@ -118,6 +124,8 @@ fn main() -> anyhow::Result<()> {
     let tab = cli.tab.clone().unwrap_or_else(|| {
         if cli.labels.is_some() {
             "labels"
+        } else if cli.survey.is_some() {
+            "survey"
         } else {
             "map"
         }
@@ -160,8 +168,13 @@ fn main() -> anyhow::Result<()> {
                 "landmarks" => Tab::Landmarks,
                 "history" => Tab::History,
                 "labels" => Tab::Labels,
+                "survey" => Tab::Survey,
                 _ => Tab::Map,
             };
+            if let Some(path) = &cli.survey {
+                app.survey.path = path.display().to_string();
+                app.apply_survey(SurveyAction::Open(path.clone()));
+            }
             Ok(Box::new(FnApp(move |ui: &mut egui::Ui| {
                 let now = start.elapsed().as_secs_f64();
                 let drawn = Instant::now();

@@ -66,6 +66,21 @@ pub fn show(
                 review.proposals.len(),
                 review.file
             ));
+            // Above the list, so a long survey does not push it out of sight.
+            let n = review.count(Decision::Accept);
+            let write = ui.add_enabled(
+                n > 0,
+                egui::Button::new(format!("Write {n} accepted towers")),
+            );
+            if write
+                .on_hover_text(
+                    "one import, under your name, live to every edge; Undo takes it back",
+                )
+                .clicked()
+            {
+                action = Some(SurveyAction::Apply);
+            }
+            ui.separator();
             egui::ScrollArea::vertical().show(ui, |ui| {
                 for (i, p) in review.proposals.iter_mut().enumerate() {
                     ui.horizontal(|ui| {
@@ -100,19 +115,6 @@ pub fn show(
                     ui.label(format!("{id}: {status} {note}"));
                 }
             });
-            let n = review.count(Decision::Accept);
-            let write = ui.add_enabled(
-                n > 0,
-                egui::Button::new(format!("Write {n} accepted towers")),
-            );
-            if write
-                .on_hover_text(
-                    "one import, under your name, live to every edge; Undo takes it back",
-                )
-                .clicked()
-            {
-                action = Some(SurveyAction::Apply);
-            }
         });
     egui::CentralPanel::default().show(ui, |ui| {
         Plot::new("survey map")
