@@ -42,7 +42,7 @@ impl LandmarkSync {
         timeout: Duration,
     ) -> Result<(Self, Source), ShellError> {
         let keys = Keys::new(fleet);
-        let replica = load(&path)?.unwrap_or_default();
+        let (replica, set_aside) = load_or_set_aside(&path)?;
         let key = keys.landmark_changes();
         let changes = session
             .declare_subscriber(key.clone())
@@ -60,9 +60,15 @@ impl LandmarkSync {
         let source = if sync.query().await? {
             Source::GroundStation
         } else if sync.replica.is_empty() {
+            let why = match &set_aside {
+                Some(corrupt) => format!(
+                    "the saved replica was unreadable (kept as {})",
+                    corrupt.display()
+                ),
+                None => format!("there is no saved replica at {}", sync.path.display()),
+            };
             return Err(ShellError::Landmarks(format!(
-                "the ground station did not answer within {timeout:?} and there is no saved replica at {}",
-                sync.path.display()
+                "the ground station did not answer within {timeout:?} and {why}"
             )));
         } else {
             tracing::warn!(
@@ -177,6 +183,34 @@ pub fn load(path: &Path) -> Result<Option<Replica>, ShellError> {
     }
 }
 
+/// The saved replica; an unreadable one (a disk that failed under it, a
+/// file edited by hand) is moved aside to `<file>.corrupt`, said so in the
+/// log, and replaced by an empty replica, which the ground station fills
+/// again. Returns where the unreadable one went.
+pub fn load_or_set_aside(path: &Path) -> Result<(Replica, Option<PathBuf>), ShellError> {
+    match load(path) {
+        Ok(replica) => Ok((replica.unwrap_or_default(), None)),
+        Err(ShellError::Landmarks(reason)) if path.is_file() && reason.contains("unreadable") => {
+            let mut aside = path.as_os_str().to_owned();
+            aside.push(".corrupt");
+            let aside = PathBuf::from(aside);
+            std::fs::rename(path, &aside).map_err(|e| {
+                ShellError::Landmarks(format!(
+                    "{reason}; moving it to {} failed: {e}",
+                    aside.display()
+                ))
+            })?;
+            tracing::warn!(
+                replica = %path.display(),
+                kept_as = %aside.display(),
+                "{reason}: set aside; fetching every tower from the ground station again"
+            );
+            Ok((Replica::default(), Some(aside)))
+        }
+        Err(e) => Err(e),
+    }
+}
+
 /// Writes the replica atomically: a crash leaves the old file or the new one, never half of one.
 pub fn save(path: &Path, replica: &Replica) -> Result<(), ShellError> {
     let fail = |e: std::io::Error| {
@@ -191,4 +225,35 @@ pub fn save(path: &Path, replica: &Replica) -> Result<(), ShellError> {
         file.sync_all().map_err(fail)?;
     }
     std::fs::rename(&tmp, path).map_err(fail)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unreadable_replica_is_set_aside_and_started_afresh() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("replica.json");
+        std::fs::write(&path, b"{\"revision\": 12, \"tow").expect("write");
+        let (replica, aside) = load_or_set_aside(&path).expect("not fatal");
+        assert!(replica.is_empty());
+        let aside = aside.expect("set aside");
+        assert_eq!(aside, dir.path().join("replica.json.corrupt"));
+        assert!(
+            aside.is_file() && !path.exists(),
+            "kept for a look, out of the way"
+        );
+    }
+
+    #[test]
+    fn a_good_replica_loads_and_a_missing_one_is_empty() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("replica.json");
+        assert!(load_or_set_aside(&path).expect("empty").0.is_empty());
+        save(&path, &Replica::default()).expect("save");
+        let (_, aside) = load_or_set_aside(&path).expect("loads");
+        assert_eq!(aside, None);
+        assert!(path.is_file());
+    }
 }
