@@ -159,3 +159,58 @@ fn a_video_without_gpmf_has_no_telemetry() {
         None
     );
 }
+
+#[test]
+fn gps9_fixes_without_a_3d_lock_or_with_a_poor_dop_are_dropped() {
+    // HERO11 and later: lat, lon, alt, 2D and 3D speed, days, seconds, DOP, fix.
+    let fix = |t: f64, dop: f64, lock: f64| Sample {
+        time_s: t,
+        values: vec![
+            33.1 + t * 1e-4,
+            -117.3,
+            -20.0,
+            5.0,
+            5.0,
+            9000.0,
+            100.0 + t,
+            dop,
+            lock,
+        ],
+    };
+    let t = Telemetry {
+        streams: vec![
+            Stream {
+                device_id: 1,
+                device_name: "Camera".into(),
+                name: "GPS (Lat., Long., Alt., 2D, 3D, days, secs, DOP, fix)".into(),
+                key: "GPS9".into(),
+                samples: vec![
+                    fix(0.0, 1.2, 3.0),
+                    fix(0.1, 7.0, 3.0),
+                    fix(0.2, 1.0, 0.0),
+                    fix(1.5, 1.1, 2.0),
+                ],
+            },
+            Stream {
+                device_id: 1,
+                device_name: "Camera".into(),
+                name: "Gravity Vector".into(),
+                key: "GRAV".into(),
+                samples: vec![Sample {
+                    time_s: 0.5,
+                    values: vec![0.0, 1.0, 0.0],
+                }],
+            },
+        ],
+        duration_s: 2.0,
+    };
+    let log = flight_log(&t).expect("a log");
+    let times: Vec<f64> = log.gnss.iter().map(|g| g.time_s).collect();
+    assert_eq!(times, vec![0.0, 1.5], "DOP 7 and no lock dropped");
+    // Above the ellipsoid in, above the sea out (the geoid is about -35 m there).
+    assert!(
+        (log.gnss[0].alt_msl_m - 15.0).abs() < 3.0,
+        "{}",
+        log.gnss[0].alt_msl_m
+    );
+}
