@@ -145,7 +145,10 @@ fn a_survey_corner_confirms_a_moved_tower_and_proposes_a_missing_one() {
     // Every feature has a status and a place.
     for f in features {
         let s = f["properties"]["status"].as_str().expect("status");
-        assert!(["confirmed", "new", "missed"].contains(&s), "{s}");
+        assert!(
+            ["confirmed", "new", "missed", "uncertain"].contains(&s),
+            "{s}"
+        );
         assert_eq!(
             f["geometry"]["coordinates"].as_array().map(Vec::len),
             Some(3)
