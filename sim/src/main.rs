@@ -125,6 +125,10 @@ enum Command {
         /// One-sigma horizontal GNSS error of flight.tlog's positions, metres.
         #[arg(long, default_value_t = 1.5)]
         gnss_sigma_m: f64,
+        /// How long the GNSS error takes to forget itself, seconds (0: a
+        /// fresh error every fix).
+        #[arg(long, default_value_t = 10.0)]
+        gnss_correlation_s: f64,
         /// One-sigma IMU attitude error (roll, pitch and heading), degrees;
         /// default: the simulator's IMU (0.1 roll and pitch, 0.2 heading).
         #[arg(long)]
@@ -238,11 +242,16 @@ fn main() -> anyhow::Result<()> {
             video,
             calibration,
             gnss_sigma_m,
+            gnss_correlation_s,
             attitude_sigma_deg,
             weather,
             dataset_every,
             out,
         } => {
+            anyhow::ensure!(
+                gnss_correlation_s.is_finite() && gnss_correlation_s >= 0.0,
+                "--gnss-correlation-s must be 0 or more, got {gnss_correlation_s}"
+            );
             anyhow::ensure!(
                 attitude_sigma_deg.is_none_or(|s| s.is_finite() && s >= 0.0),
                 "--attitude-sigma-deg must be 0 or more"
@@ -258,7 +267,7 @@ fn main() -> anyhow::Result<()> {
                 gnss: GnssParams {
                     horizontal_sigma_m: gnss_sigma_m,
                     vertical_sigma_m: 2.0 * gnss_sigma_m,
-                    ..GnssParams::default()
+                    correlation_s: gnss_correlation_s,
                 },
                 dataset_every,
             };
