@@ -20,14 +20,13 @@ use towernav_core::tower_map::{
     Verdict, match_towers,
 };
 use towernav_core::tracker::{SortParams, SortTracker, Tracker, TrackerInput};
-use towernav_flightlog::GnssSample;
-use towernav_geometry::{Datum, EDGE_MARGIN_PX, Pose};
+use towernav_geometry::{Datum, EDGE_MARGIN_PX};
 use towernav_protocol::{LandmarkRecord, TowerType};
 
 use crate::daemon::config::EdgeConfig;
 use crate::edge_cmd::load_detector;
 use crate::replay::Recording;
-use crate::survey::survey_towers;
+use crate::survey::{survey_datum, survey_pose, survey_towers};
 
 /// Options beyond the config's source, log, camera, landmarks and detector.
 #[derive(Debug, Clone)]
@@ -143,12 +142,7 @@ pub fn map_towers(
         offset_s,
     } = Recording::open(config)?;
     let (width, height) = (config.source.width, config.source.height);
-    let datum = log
-        .gnss
-        .first()
-        .and_then(GnssSample::geodetic)
-        .map(Datum::new)
-        .context("the flight log has no GNSS: mapping needs it for the poses")?;
+    let datum = survey_datum(&log)?;
     let camera = config.camera.camera(width, height)?;
     let known = match config.landmarks.file.as_deref() {
         Some(path) => towernav_landmark_db::load_towers(path)?,
@@ -176,20 +170,12 @@ pub fn map_towers(
         let frame = frame?;
         run_frames += 1;
         progress(frame.seq, total);
-        let t = frame.time_s + offset_s;
-        let (Some(attitude), Some(position), Some(image)) = (
-            log.attitude_at(t),
-            log.gnss_at(t)
-                .and_then(|g| g.geodetic())
-                .map(|g| datum.to_enu(&g)),
+        let (Some(pose), Some(image)) = (
+            survey_pose(&log, &datum, frame.time_s + offset_s),
             frame.image.as_ref(),
         ) else {
             without_pose += 1;
             continue;
-        };
-        let pose = Pose {
-            position_in_world: position,
-            attitude,
         };
         for label in project_labels(&labeller, &pose, &survey, &LabelParams::default()) {
             if label.dropped.is_none() {

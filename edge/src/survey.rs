@@ -19,7 +19,7 @@ use towernav_core::survey_labels::{
     borrow_widths, project_labels, snap,
 };
 use towernav_dataset::YoloLabel;
-use towernav_flightlog::GnssSample;
+use towernav_flightlog::{FlightLog, GnssSample};
 use towernav_geometry::{Datum, Geodetic, PixelBox, Pose};
 use towernav_protocol::LandmarkRecord;
 
@@ -75,6 +75,24 @@ pub(crate) fn survey_towers(
         .collect()
 }
 
+/// A survey flight's world frame: its log's first GNSS fix.
+pub(crate) fn survey_datum(log: &FlightLog) -> anyhow::Result<Datum> {
+    log.gnss
+        .first()
+        .and_then(GnssSample::geodetic)
+        .map(Datum::new)
+        .context("the flight log has no GNSS: a survey flight needs it for the poses")
+}
+
+/// The pose a survey flight's log gives at `log_time_s`: its GNSS and
+/// attitude; `None` where the log has neither around that time.
+pub(crate) fn survey_pose(log: &FlightLog, datum: &Datum, log_time_s: f64) -> Option<Pose> {
+    Some(Pose {
+        position_in_world: datum.to_enu(&log.gnss_at(log_time_s)?.geodetic()?),
+        attitude: log.attitude_at(log_time_s)?,
+    })
+}
+
 /// Labels the survey flight `config` names into `options.out`.
 pub fn label_flight(
     config: &EdgeConfig,
@@ -88,12 +106,7 @@ pub fn label_flight(
         offset_s,
     } = Recording::open(config)?;
     let (width, height) = (config.source.width, config.source.height);
-    let datum = log
-        .gnss
-        .first()
-        .and_then(GnssSample::geodetic)
-        .map(Datum::new)
-        .context("the flight log has no GNSS: a survey flight needs it for the poses")?;
+    let datum = survey_datum(&log)?;
     let camera = config.camera.camera(width, height)?;
     let labeller = LabelCamera::new(camera);
     let records = towernav_landmark_db::load_towers(
@@ -128,20 +141,12 @@ pub fn label_flight(
         if frame.seq % every != 0 {
             continue;
         }
-        let t = frame.time_s + offset_s;
-        let (Some(attitude), Some(position), Some(image)) = (
-            log.attitude_at(t),
-            log.gnss_at(t)
-                .and_then(|g| g.geodetic())
-                .map(|g| datum.to_enu(&g)),
+        let (Some(pose), Some(image)) = (
+            survey_pose(&log, &datum, frame.time_s + offset_s),
             frame.image.as_ref(),
         ) else {
             run.without_pose += 1;
             continue;
-        };
-        let pose = Pose {
-            position_in_world: position,
-            attitude,
         };
         let mut labels = project_labels(&labeller, &pose, &towers, &options.params);
         if let Some(detector) = &mut detector {

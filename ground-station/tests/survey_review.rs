@@ -38,6 +38,17 @@ fn harness(app: GsApp) -> Harness<'static, GsApp> {
     harness
 }
 
+/// The app on the Survey review tab with `text` opened from a file named `name`.
+fn opened(text: &str, name: &str) -> (tempfile::TempDir, Harness<'static, GsApp>) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join(name);
+    std::fs::write(&file, text).expect("write");
+    let (_tx, _commands, app) = app();
+    let mut harness = harness(app);
+    open(&mut harness, &file);
+    (dir, harness)
+}
+
 fn open(harness: &mut Harness<'static, GsApp>, path: &std::path::Path) {
     harness
         .get_by_role_and_label(egui::Role::TextInput, "Survey file")
@@ -51,12 +62,7 @@ fn open(harness: &mut Harness<'static, GsApp>, path: &std::path::Path) {
 
 #[test]
 fn only_the_accepted_tower_is_written_as_one_import_that_undo_takes_back() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let file = dir.path().join("towers-mapped.geojson");
-    std::fs::write(&file, SURVEY).expect("write");
-    let (_tx, _commands, app) = app();
-    let mut harness = harness(app);
-    open(&mut harness, &file);
+    let (_dir, mut harness) = opened(SURVEY, "towers-mapped.geojson");
     harness.get_by_label("confirms A1: 10.0 m off, height -0.6 m");
     harness.get_by_label("B1: missed ");
     // Nothing is written until something is accepted.
@@ -93,12 +99,7 @@ fn only_the_accepted_tower_is_written_as_one_import_that_undo_takes_back() {
 
 #[test]
 fn edit_takes_a_confirmed_tower_into_the_form_as_the_stored_one() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let file = dir.path().join("towers-mapped.geojson");
-    std::fs::write(&file, SURVEY).expect("write");
-    let (_tx, _commands, app) = app();
-    let mut harness = harness(app);
-    open(&mut harness, &file);
+    let (_dir, mut harness) = opened(SURVEY, "towers-mapped.geojson");
     harness.get_by_label("Edit A1").click();
     harness.run();
     assert_eq!(harness.state().tab, Tab::Landmarks);
@@ -110,15 +111,9 @@ fn edit_takes_a_confirmed_tower_into_the_form_as_the_stored_one() {
 
 #[test]
 fn a_file_that_is_not_a_survey_is_refused_by_name() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let file = dir.path().join("towers.geojson");
-    std::fs::write(
-        &file,
+    let (_dir, harness) = opened(
         r#"{"type":"FeatureCollection","features":[{"properties":{}}]}"#,
-    )
-    .expect("write");
-    let (_tx, _commands, app) = app();
-    let mut harness = harness(app);
-    open(&mut harness, &file);
+        "towers.geojson",
+    );
     harness.get_by_label_contains("feature 1: no status");
 }

@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use clap::Args;
 use towernav_core::survey_labels::LabelParams;
-use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig};
 use towernav_edge::survey::{LabelOptions, label_flight};
 
 use crate::cli::recording_args::RecordingArgs;
@@ -47,22 +46,10 @@ impl LabelArgs {
     pub fn run(&self) -> anyhow::Result<()> {
         let r = &self.recording;
         anyhow::ensure!(
-            r.video.is_some() || r.images.is_some(),
-            "give the survey flight: --video FILE or --images DIR"
-        );
-        anyhow::ensure!(
             r.camera.is_some() && r.landmarks.is_some(),
             "labels need the calibration (--camera) and the towers (--landmarks)"
         );
-        let mut c = EdgeConfig::default();
-        r.apply(&mut c);
-        let log = r.log_or_gopro(self.log.as_ref()).ok_or_else(|| {
-            anyhow::anyhow!(
-                "give the flight log with attitude and GNSS: --log (a GoPro video with GPMF telemetry needs none)"
-            )
-        })?;
-        c.attitude.kind = AttitudeKind::Log;
-        c.attitude.path = Some(log);
+        let mut c = r.survey_config(self.log.as_ref())?;
         c.detector.classify_types = false;
         if let Some(m) = &self.model {
             c.detector.model = m.clone();

@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use clap::Args;
 use towernav_core::tower_map::{MatchParams, TriangulationParams, Verdict};
-use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig};
 use towernav_edge::map_towers::{MapOptions, SCORE_MATCH_M, SCORE_MIN_VIEWS, map_towers};
 
 use crate::cli::recording_args::RecordingArgs;
@@ -51,10 +50,6 @@ impl MapTowersArgs {
     pub fn run(&self) -> anyhow::Result<()> {
         let r = &self.recording;
         anyhow::ensure!(
-            r.video.is_some() || r.images.is_some(),
-            "give the survey flight: --video FILE or --images DIR"
-        );
-        anyhow::ensure!(
             r.camera.is_some(),
             "mapping needs the calibration (--camera)"
         );
@@ -62,15 +57,7 @@ impl MapTowersArgs {
             self.gnss_sigma_m >= 0.0 && self.bearing_sigma_deg > 0.0 && self.min_views >= 2,
             "--gnss-sigma-m must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
         );
-        let mut c = EdgeConfig::default();
-        r.apply(&mut c);
-        let log = r.log_or_gopro(self.log.as_ref()).ok_or_else(|| {
-            anyhow::anyhow!(
-                "give the flight log with attitude and GNSS: --log (a GoPro video with GPMF telemetry needs none)"
-            )
-        })?;
-        c.attitude.kind = AttitudeKind::Log;
-        c.attitude.path = Some(log);
+        let mut c = r.survey_config(self.log.as_ref())?;
         if let Some(m) = &self.model {
             c.detector.model = m.clone();
         }

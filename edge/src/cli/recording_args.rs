@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use towernav_edge::daemon::config::{EdgeConfig, SourceKind};
+use towernav_edge::daemon::config::{AttitudeKind, EdgeConfig, SourceKind};
 
 #[derive(Args)]
 pub struct RecordingArgs {
@@ -43,6 +43,25 @@ impl RecordingArgs {
                 .filter(|v| towernav_flightlog::gpmf::Telemetry::in_video(v))
                 .cloned()
         })
+    }
+
+    /// A survey flight's config (`label`, `map-towers`): the recording, and
+    /// its log with attitude and GNSS (`log`, else a GoPro video's own).
+    pub fn survey_config(&self, log: Option<&PathBuf>) -> anyhow::Result<EdgeConfig> {
+        anyhow::ensure!(
+            self.video.is_some() || self.images.is_some(),
+            "give the survey flight: --video FILE or --images DIR"
+        );
+        let log = self.log_or_gopro(log).ok_or_else(|| {
+            anyhow::anyhow!(
+                "give the flight log with attitude and GNSS: --log (a GoPro video with GPMF telemetry needs none)"
+            )
+        })?;
+        let mut c = EdgeConfig::default();
+        self.apply(&mut c);
+        c.attitude.kind = AttitudeKind::Log;
+        c.attitude.path = Some(log);
+        Ok(c)
     }
 
     /// These flags over `c`.
