@@ -9,6 +9,7 @@ pub mod ids;
 pub mod keys;
 pub mod messages;
 pub mod on_key;
+pub mod ros2;
 #[cfg(feature = "zenoh")]
 pub mod security;
 #[cfg(feature = "zenoh")]
