@@ -25,12 +25,12 @@ use std::time::{Duration, Instant};
 use mavlink::dialects::common::{
     GLOBAL_POSITION_INT_DATA, GpsFixType, MavAutopilot, MavMessage, MavSeverity, TIMESYNC_DATA,
 };
-use nalgebra::{Matrix3, Point3, Vector3};
-use towernav_geometry::{Attitude, Datum, Geodetic, GeoidCache};
+use towernav_geometry::{Attitude, Datum, GeoidCache};
 use towernav_protocol::{EdgeState, Health, PoseEstimate};
 
 use crate::autopilot::{global_position, gps_input, heartbeat, odometry, status_text};
-use crate::filter::horizontal_sigma;
+pub use crate::fix_keeper::LinkEstimate;
+use crate::fix_keeper::{FixKeeper, FixKind, FixRules};
 
 /// How often HEARTBEAT goes out (MAVLink's microservices expect 1 Hz).
 pub const HEARTBEAT_EVERY: Duration = Duration::from_secs(1);
@@ -68,6 +68,18 @@ pub struct LinkConfig {
     pub accel_sigma: f64,
 }
 
+impl LinkConfig {
+    /// The rules on how long a fix stays good.
+    pub fn fix_rules(&self) -> FixRules {
+        FixRules {
+            fresh_fix: self.fresh_fix,
+            coast_fix: self.coast_fix,
+            coast_max_sigma_m: self.coast_max_sigma_m,
+            accel_sigma: self.accel_sigma,
+        }
+    }
+}
+
 impl Default for LinkConfig {
     fn default() -> Self {
         Self {
@@ -80,15 +92,6 @@ impl Default for LinkConfig {
             accel_sigma: 1.5,
         }
     }
-}
-
-/// One frame's estimate, as the link needs it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LinkEstimate {
-    pub pose: PoseEstimate,
-    pub attitude: Attitude,
-    pub velocity_in_world: Vector3<f64>,
-    pub velocity_covariance: Matrix3<f64>,
 }
 
 /// The autopilot's own position (GLOBAL_POSITION_INT), while its GNSS is good.
@@ -127,12 +130,9 @@ const EARLIEST_REAL_UNIX_US: u64 = 1_577_836_800_000_000;
 
 pub struct AutopilotLink {
     config: LinkConfig,
-    datum: Datum,
     clock: UnixClock,
     geoid: GeoidCache,
-    latest: Option<(Instant, LinkEstimate)>,
-    last_tower_fix: Option<Instant>,
-    state: EdgeState,
+    fix: FixKeeper,
     health: Health,
     reported_fix: Option<GpsFixType>,
     autopilot_position: Option<AutopilotPosition>,
@@ -146,17 +146,15 @@ pub struct AutopilotLink {
 impl AutopilotLink {
     /// A link starting at `now`, when UTC is `unix_now_us`.
     pub fn new(config: LinkConfig, datum: Datum, now: Instant, unix_now_us: u64) -> Self {
+        let rules = config.fix_rules();
         Self {
             config,
-            datum,
             clock: UnixClock {
                 at: now,
                 unix_us: unix_now_us,
             },
             geoid: GeoidCache::default(),
-            latest: None,
-            last_tower_fix: None,
-            state: EdgeState::Initializing,
+            fix: FixKeeper::new(rules, datum),
             health: Health::Ok,
             reported_fix: None,
             autopilot_position: None,
@@ -176,16 +174,7 @@ impl AutopilotLink {
         estimate: Option<LinkEstimate>,
         state: EdgeState,
     ) {
-        self.state = state;
-        if let Some(e) = estimate {
-            if !e.pose.towers_used.is_empty() {
-                self.last_tower_fix = Some(now);
-            }
-            self.latest = Some((now, e));
-        } else if state == EdgeState::NoFix {
-            // Lost: nothing to predict from any more.
-            self.latest = None;
-        }
+        self.fix.handle_estimate(now, estimate, state);
         self.report_fix_change(now);
     }
 
@@ -264,8 +253,10 @@ impl AutopilotLink {
     pub fn handle_timeout(&mut self, now: Instant) {
         self.report_fix_change(now);
         if now >= self.next_heartbeat {
-            self.out
-                .push_back(MavMessage::HEARTBEAT(heartbeat(self.state, self.health)));
+            self.out.push_back(MavMessage::HEARTBEAT(heartbeat(
+                self.fix.state(),
+                self.health,
+            )));
             self.next_heartbeat = next_due(self.next_heartbeat, HEARTBEAT_EVERY, now);
         }
         if let Some((message, every)) = self.config.position
@@ -283,7 +274,7 @@ impl AutopilotLink {
                     GpsFixType::GPS_FIX_TYPE_2D_FIX => 50,
                     _ => -1,
                 };
-                let attitude = self.latest.as_ref().map(|(_, e)| e.attitude);
+                let attitude = self.fix.latest().map(|e| e.attitude);
                 let attitude = attitude.unwrap_or(Attitude::level(pose.yaw_rad));
                 let unix = self.clock.unix_us(now);
                 self.out.push_back(MavMessage::ODOMETRY(odometry(
@@ -301,59 +292,17 @@ impl AutopilotLink {
 
     /// The fix the autopilot is told of at `now`.
     pub fn fix_type(&self, now: Instant) -> GpsFixType {
-        let since_fix = self
-            .last_tower_fix
-            .map(|at| now.saturating_duration_since(at));
-        let estimating = self.latest.is_some()
-            && matches!(self.state, EdgeState::Localized | EdgeState::Coasting);
-        let worth_little = || {
-            self.predicted(now).is_none_or(|p| {
-                let c = &p.covariance;
-                let en = nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
-                horizontal_sigma(&en) > self.config.coast_max_sigma_m
-            })
-        };
-        match since_fix {
-            Some(age) if estimating && age <= self.config.fresh_fix => {
-                GpsFixType::GPS_FIX_TYPE_3D_FIX
-            }
-            Some(age) if estimating && age <= self.config.coast_fix && !worth_little() => {
-                GpsFixType::GPS_FIX_TYPE_2D_FIX
-            }
-            _ => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+        match self.fix.fix(now) {
+            FixKind::Fresh => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+            FixKind::Coasting => GpsFixType::GPS_FIX_TYPE_2D_FIX,
+            FixKind::None => GpsFixType::GPS_FIX_TYPE_NO_FIX,
         }
     }
 
     /// The latest estimate carried to `now` at its velocity, its covariance
     /// grown by the velocity's and the filter's acceleration noise.
     pub fn predicted(&self, now: Instant) -> Option<PoseEstimate> {
-        let (at, e) = self.latest.as_ref()?;
-        let dt = now.saturating_duration_since(*at).as_secs_f64();
-        let mut pose = e.pose.clone();
-        let p = Point3::new(pose.east_m, pose.north_m, pose.up_m) + e.velocity_in_world * dt;
-        let Geodetic {
-            lat_deg,
-            lon_deg,
-            height_m,
-        } = self.datum.to_geodetic(&p);
-        (pose.east_m, pose.north_m, pose.up_m) = (p.x, p.y, p.z);
-        (pose.lat_deg, pose.lon_deg, pose.alt_m) = (lat_deg, lon_deg, height_m);
-        pose.time_s += dt;
-        // Position error after dt: the velocity's error times dt, plus the
-        // white acceleration's (sigma dt^2 / 2)^2 per axis; cross terms with
-        // the position's error are left out.
-        let accel = (self.config.accel_sigma * dt * dt / 2.0).powi(2);
-        for r in 0..3 {
-            for c in 0..3 {
-                pose.covariance[r][c] += e.velocity_covariance[(r, c)] * dt * dt;
-            }
-            pose.covariance[r][r] += accel;
-        }
-        if dt > 0.0 {
-            // A prediction is not a tower fix.
-            pose.towers_used.clear();
-        }
-        Some(pose)
+        self.fix.predicted(now)
     }
 
     fn queue_position(&mut self, now: Instant, message: PositionMessage) {
