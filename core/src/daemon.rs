@@ -23,6 +23,7 @@ use crate::autopilot_link::{AutopilotLink, LinkEstimate};
 use crate::landmarks::LandmarkMap;
 use crate::optical_flow::velocity_from_optical_flow;
 use crate::pipeline::{FrameOutput, Pipeline};
+use crate::ros_link::{RosLink, RosOutput};
 use crate::wire::{pose_estimate, track_report};
 
 /// How often the status heartbeat goes out.
@@ -72,6 +73,9 @@ pub enum Command {
         from: (u8, u8),
         message: MavMessage,
     },
+    /// PX4's time since boot, microseconds, from a message stamped with it
+    /// (its `vehicle_attitude` over Zenoh).
+    Px4Time(u64),
 }
 
 /// What the shell is to send or do.
@@ -94,6 +98,8 @@ pub enum Output {
     Status(StatusHeartbeat),
     /// To the autopilot.
     Mavlink(MavMessage),
+    /// To ROS 2 and PX4 over Zenoh.
+    Ros(RosOutput),
     /// The autopilot's own GNSS position, for a survey flight's record.
     AutopilotPosition(SurveyPosition),
 }
@@ -152,6 +158,7 @@ pub struct DaemonCore {
     latency_us: Histogram<u64>,
     last_preview: Option<Instant>,
     autopilot: Option<AutopilotLink>,
+    ros: Option<RosLink>,
     /// The autopilot sends ALTITUDE: its relative altitude is preferred to
     /// GLOBAL_POSITION_INT's.
     altitude_source_seen: bool,
@@ -180,6 +187,7 @@ impl DaemonCore {
             latency_us: latency_histogram(),
             last_preview: None,
             autopilot: None,
+            ros: None,
             altitude_source_seen: false,
         }
     }
@@ -187,6 +195,13 @@ impl DaemonCore {
     /// With a MAVLink link to the autopilot: its messages come out as `Output::Mavlink`.
     pub fn with_autopilot(mut self, link: AutopilotLink) -> Self {
         self.autopilot = Some(link);
+        self
+    }
+
+    /// With ROS 2 topics or PX4's auxiliary global position over Zenoh:
+    /// they come out as `Output::Ros`.
+    pub fn with_ros(mut self, link: RosLink) -> Self {
+        self.ros = Some(link);
         self
     }
 
@@ -235,6 +250,9 @@ impl DaemonCore {
                 state: self.state,
                 attitude: frame.attitude,
             });
+        }
+        if let Some(link) = self.ros.as_mut() {
+            link.handle_estimate(now, for_autopilot.clone(), self.state);
         }
         if let Some(link) = self.autopilot.as_mut() {
             link.handle_estimate(now, for_autopilot, self.state);
@@ -299,6 +317,11 @@ impl DaemonCore {
             Command::ReplaceMap(map) => {
                 tracing::info!(towers = map.towers.len(), "landmarks replaced");
                 self.pipeline.replace_map(map);
+            }
+            Command::Px4Time(px4_us) => {
+                if let Some(link) = self.ros.as_mut() {
+                    link.handle_px4_time(now, px4_us);
+                }
             }
             Command::FromAutopilot { from, message } => {
                 if self.autopilot.is_none() {
@@ -387,10 +410,14 @@ impl DaemonCore {
 
     /// When `handle_timeout` is next due.
     pub fn poll_timeout(&self) -> Instant {
-        match &self.autopilot {
-            Some(link) => self.next_status.min(link.poll_timeout()),
-            None => self.next_status,
+        let mut due = self.next_status;
+        if let Some(link) = &self.autopilot {
+            due = due.min(link.poll_timeout());
         }
+        if let Some(link) = &self.ros {
+            due = due.min(link.poll_timeout());
+        }
+        due
     }
 
     /// Sends the status heartbeat and the autopilot's messages when due;
@@ -398,6 +425,9 @@ impl DaemonCore {
     pub fn handle_timeout(&mut self, now: Instant, counters: SourceCounters) {
         self.status_timeout(now, counters);
         if let Some(link) = self.autopilot.as_mut() {
+            link.handle_timeout(now);
+        }
+        if let Some(link) = self.ros.as_mut() {
             link.handle_timeout(now);
         }
     }
@@ -451,12 +481,20 @@ impl DaemonCore {
 
     /// The next message to send, oldest first.
     pub fn poll_output(&mut self) -> Option<Output> {
-        self.outputs.pop_front().or_else(|| {
-            self.autopilot
-                .as_mut()
-                .and_then(AutopilotLink::poll_transmit)
-                .map(Output::Mavlink)
-        })
+        self.outputs
+            .pop_front()
+            .or_else(|| {
+                self.autopilot
+                    .as_mut()
+                    .and_then(AutopilotLink::poll_transmit)
+                    .map(Output::Mavlink)
+            })
+            .or_else(|| {
+                self.ros
+                    .as_mut()
+                    .and_then(RosLink::poll_transmit)
+                    .map(Output::Ros)
+            })
     }
 
     pub fn pipeline(&self) -> &Pipeline {

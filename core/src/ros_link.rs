@@ -51,10 +51,10 @@ pub struct RosLinkConfig {
 /// One message to publish.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RosOutput {
-    NavSatFix(NavSatFix),
-    Pose(PoseWithCovarianceStamped),
-    Odometry(Odometry),
-    Px4(Px4GlobalPosition),
+    NavSatFix(Box<NavSatFix>),
+    Pose(Box<PoseWithCovarianceStamped>),
+    Odometry(Box<Odometry>),
+    Px4(Box<Px4GlobalPosition>),
 }
 
 /// The variance put on what is not measured (the twist's angular rates).
@@ -127,12 +127,8 @@ impl RosLink {
                 let slack =
                     now.saturating_duration_since(kept.at).as_secs_f64() * PX4_CLOCK_SLACK_US_PER_S;
                 let held = kept.offset_us - slack;
-                if sample < held - PX4_REBOOT_US {
-                    Px4Clock {
-                        offset_us: sample,
-                        at: now,
-                    }
-                } else if sample >= held {
+                // Lower by far: PX4 rebooted. Higher: less latency than before.
+                if sample < held - PX4_REBOOT_US || sample >= held {
                     Px4Clock {
                         offset_us: sample,
                         at: now,
@@ -194,24 +190,24 @@ impl RosLink {
         );
         if self.config.ros2 {
             let fix = self.nav_sat_fix(header(&base_frame), usable);
-            self.out.push_back(RosOutput::NavSatFix(fix));
+            self.out.push_back(RosOutput::NavSatFix(Box::new(fix)));
             if let (Some(pose), Some(latest)) = (usable, self.fix.latest()) {
                 let with_cov =
                     pose_with_covariance(pose, &latest.attitude, self.config.roll_pitch_sigma_rad);
                 self.out
-                    .push_back(RosOutput::Pose(PoseWithCovarianceStamped {
+                    .push_back(RosOutput::Pose(Box::new(PoseWithCovarianceStamped {
                         header: header(&map_frame),
                         pose: with_cov.clone(),
-                    }));
+                    })));
                 let (linear, twist_covariance) = twist(latest, pose.yaw_rad);
-                self.out.push_back(RosOutput::Odometry(Odometry {
+                self.out.push_back(RosOutput::Odometry(Box::new(Odometry {
                     header: header(&map_frame),
                     child_frame_id: base_frame.clone(),
                     pose: with_cov,
                     linear,
                     angular: [0.0; 3],
                     twist_covariance,
-                }));
+                })));
             }
         }
         if let Some(id) = self.config.px4_source_id {
@@ -226,7 +222,7 @@ impl RosLink {
                 (false, false) => {}
             }
             let message = self.px4_position(now, id, fresh);
-            self.out.push_back(RosOutput::Px4(message));
+            self.out.push_back(RosOutput::Px4(Box::new(message)));
         }
     }
 

@@ -14,6 +14,7 @@ use towernav_core::daemon::{DaemonConfig, DaemonCore, FrameObserver};
 use towernav_core::detector::PostprocessParams;
 use towernav_core::localizer::Method;
 use towernav_core::pipeline::{Pipeline, PipelineConfig};
+use towernav_core::ros_link::RosLink;
 use towernav_core::wire::pose_method;
 use towernav_core::{LandmarkMap, TypeMatch, match_types};
 use towernav_geometry::{Datum, Geodetic, PinholeCamera};
@@ -33,6 +34,7 @@ use crate::daemon::config::{
     AttitudeKind, AttitudeSection, DetectorKind, DetectorSection, EdgeConfig, SourceKind,
 };
 use crate::daemon::mavlink_out::MavlinkOut;
+use crate::daemon::ros2_out::{OnboardBus, Px4Attitude};
 use crate::daemon::run::{Daemon, RunOptions, RunSummary, drop_advice, dropped_share};
 use crate::daemon::source::{FfmpegSource, FirstFrames, FrameSource, ImageFolderSource};
 use crate::daemon::worker::Worker;
@@ -81,7 +83,9 @@ pub async fn run_edge(
         Some(sim) => sim.source(config),
         None => open_source(config)?,
     };
-    let attitude = open_attitude(&config.attitude)?;
+    let onboard = OnboardBus::open(config).await?;
+    let (onboard, px4_attitude) = onboard.unzip();
+    let attitude = open_attitude(&config.attitude, px4_attitude)?;
     check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
     let (pipeline, method) = pipeline_for(config, camera, takeoff_in_world, map)?;
     let core = DaemonCore::new(
@@ -101,7 +105,12 @@ pub async fn run_edge(
         true => core.with_autopilot(autopilot_link(config, datum)),
         false => core,
     };
-    let options = run_options(config, detector_name, classes)?;
+    let core = match config.ros2.enabled || config.px4.enabled {
+        true => core.with_ros(ros_link(config, datum)),
+        false => core,
+    };
+    let mut options = run_options(config, detector_name, classes)?;
+    options.onboard = onboard;
     print_banner(config, &fleet);
 
     #[cfg(feature = "demo")]
@@ -171,6 +180,24 @@ fn coast_max_sigma_m(config: &EdgeConfig) -> f64 {
 
 /// The core's MAVLink link, its clock set from this machine's until the
 /// autopilot's SYSTEM_TIME says otherwise.
+/// The ROS 2 / PX4 link, on the MAVLink link's rules of how long a fix is good.
+fn ros_link(config: &EdgeConfig, datum: Datum) -> RosLink {
+    let unix_now_us = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64);
+    let accel_sigma = towernav_core::filter::FilterParams::default().accel_sigma_h;
+    let rules = config
+        .mavlink
+        .link_config(accel_sigma, coast_max_sigma_m(config))
+        .fix_rules();
+    RosLink::new(
+        config.ros2.link_config(&config.px4, rules),
+        datum,
+        Instant::now(),
+        unix_now_us,
+    )
+}
+
 fn autopilot_link(config: &EdgeConfig, datum: Datum) -> AutopilotLink {
     let unix_now_us = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -234,6 +261,7 @@ fn run_options(
             .enabled
             .then(|| MavlinkOut::open(&config.mavlink))
             .transpose()?,
+        onboard: None,
         annotate_dir: config.output.annotated.clone(),
         classes,
     })
@@ -424,7 +452,10 @@ pub(crate) fn open_source(config: &EdgeConfig) -> anyhow::Result<Box<dyn FrameSo
     })
 }
 
-pub(crate) fn open_attitude(section: &AttitudeSection) -> anyhow::Result<AttitudeSource> {
+pub(crate) fn open_attitude(
+    section: &AttitudeSection,
+    px4: Option<Px4Attitude>,
+) -> anyhow::Result<AttitudeSource> {
     Ok(match section.kind {
         AttitudeKind::Source => AttitudeSource::Frames,
         AttitudeKind::Log | AttitudeKind::Csv => {
@@ -447,6 +478,9 @@ pub(crate) fn open_attitude(section: &AttitudeSection) -> anyhow::Result<Attitud
         AttitudeKind::Mavlink => {
             AttitudeSource::Mavlink(MavlinkAttitude::listen(&section.address)?)
         }
+        AttitudeKind::Px4 => AttitudeSource::Px4(px4.context(
+            "attitude.kind = \"px4\" reads PX4 on the onboard Zenoh, which did not open",
+        )?),
     })
 }
 

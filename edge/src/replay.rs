@@ -85,7 +85,7 @@ impl Recording {
         config.source.width = width;
         config.source.height = height;
         let source = open_source(&config)?;
-        let attitude = open_attitude(&config.attitude)?;
+        let attitude = open_attitude(&config.attitude, None)?;
         check_log_covers(source.as_ref(), &attitude, &config.attitude)?;
         let AttitudeSource::Log { log, offset_s } = attitude else {
             anyhow::bail!(

@@ -22,6 +22,7 @@ mod onnx_reid;
 mod pipeline;
 mod real_data;
 mod replay;
+mod ros2_zenoh;
 mod sim_source;
 mod tower_mapping;
 mod tracking;

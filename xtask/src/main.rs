@@ -221,14 +221,18 @@ const PYYAML_VERSION: &str = "6.0.3";
 const ECLIPSE_ZENOH_VERSION: &str = "1.10.2";
 /// GoPro's own GPMF parser (its C library, bound for Python), to check ours.
 const PY_GPMF_PARSER_VERSION: &str = "0.1.1";
+/// rosbags: ROS 2's CDR and type hashes in pure Python, to check the ROS 2 topics.
+const ROSBAGS_VERSION: &str = "0.11.9";
+/// pycdr2: Cyclone DDS's XCDR2 in pure Python, as PX4's Zenoh module reads it.
+const PYCDR2_VERSION: &str = "1.0.0";
 
 /// `.pydeps/` under the workspace, holding pymavlink from the Python package
 /// index; the tests find it through `TOWERNAV_PYTHONPATH`.
 fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
     let dir = root.join(".pydeps");
     // PyYAML beside it: the training data mixer's test reads data.yaml files;
-    // eclipse-zenoh, a client of a secured fleet that is not ours; and
-    // GoPro's GPMF parser.
+    // eclipse-zenoh, a client of a secured fleet that is not ours; GoPro's
+    // GPMF parser; rosbags and pycdr2, ROS 2's and PX4's CDR.
     let installed = |name: &str, version: &str| {
         let want = format!("{name}-{version}.dist-info").to_lowercase();
         std::fs::read_dir(&dir).is_ok_and(|entries| {
@@ -241,6 +245,8 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
         && installed("pyyaml", PYYAML_VERSION)
         && installed("eclipse_zenoh", ECLIPSE_ZENOH_VERSION)
         && installed("py_gpmf_parser", PY_GPMF_PARSER_VERSION)
+        && installed("rosbags", ROSBAGS_VERSION)
+        && installed("pycdr2", PYCDR2_VERSION)
     {
         return Ok(());
     }
@@ -258,9 +264,11 @@ fn ensure_pymavlink(root: &Path) -> anyhow::Result<()> {
         .arg(format!("pymavlink=={PYMAVLINK_VERSION}"))
         .arg(format!("pyyaml=={PYYAML_VERSION}"))
         .arg(format!("eclipse-zenoh=={ECLIPSE_ZENOH_VERSION}"))
-        .arg(format!("py-gpmf-parser=={PY_GPMF_PARSER_VERSION}")))?;
+        .arg(format!("py-gpmf-parser=={PY_GPMF_PARSER_VERSION}"))
+        .arg(format!("rosbags=={ROSBAGS_VERSION}"))
+        .arg(format!("pycdr2=={PYCDR2_VERSION}")))?;
     eprintln!(
-        "xtask: pymavlink {PYMAVLINK_VERSION}, PyYAML {PYYAML_VERSION}, eclipse-zenoh {ECLIPSE_ZENOH_VERSION} and py-gpmf-parser {PY_GPMF_PARSER_VERSION} in {}",
+        "xtask: pymavlink {PYMAVLINK_VERSION}, PyYAML {PYYAML_VERSION}, eclipse-zenoh {ECLIPSE_ZENOH_VERSION}, py-gpmf-parser {PY_GPMF_PARSER_VERSION}, rosbags {ROSBAGS_VERSION} and pycdr2 {PYCDR2_VERSION} in {}",
         dir.display()
     );
     Ok(())

@@ -1,7 +1,7 @@
 //! Where each frame's attitude comes from: the frame source (the simulator's
 //! IMU), a flight log (ArduPilot `.bin`, MAVLink `.tlog`, PX4 `.ulg`, CSV)
-//! on the camera's clock plus an offset, or the autopilot's MAVLink
-//! ATTITUDE messages.
+//! on the camera's clock plus an offset, the autopilot's MAVLink
+//! ATTITUDE messages, or PX4's `vehicle_attitude` over Zenoh.
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -84,6 +84,8 @@ pub enum AttitudeSource {
         offset_s: f64,
     },
     Mavlink(MavlinkAttitude),
+    /// PX4's `vehicle_attitude` over the onboard Zenoh.
+    Px4(super::ros2_out::Px4Attitude),
 }
 
 impl AttitudeSource {
@@ -93,6 +95,7 @@ impl AttitudeSource {
             Self::Frames => from_frame,
             Self::Log { log, offset_s } => log.attitude_at(time_s + offset_s),
             Self::Mavlink(m) => m.latest(Duration::from_millis(500)),
+            Self::Px4(p) => p.latest(Duration::from_millis(500)),
         }
     }
 }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use towernav_core::autopilot_link::{LinkConfig, PositionMessage};
 
 use super::frame_times::FrameTimes;
+use super::ros2_config::{Px4Section, Ros2Section};
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -31,6 +32,8 @@ pub struct EdgeConfig {
     pub landmarks: LandmarksSection,
     pub pipeline: PipelineSection,
     pub mavlink: MavlinkSection,
+    pub ros2: Ros2Section,
+    pub px4: Px4Section,
     pub output: OutputSection,
 }
 
@@ -259,6 +262,9 @@ pub enum AttitudeKind {
     Csv,
     /// The autopilot's MAVLink ATTITUDE messages.
     Mavlink,
+    /// PX4's `vehicle_attitude` over Zenoh (`[px4] attitude_topic`, on
+    /// `[ros2]`'s onboard Zenoh).
+    Px4,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -465,6 +471,8 @@ impl Default for EdgeConfig {
             landmarks: LandmarksSection::default(),
             pipeline: PipelineSection::default(),
             mavlink: MavlinkSection::default(),
+            ros2: Ros2Section::default(),
+            px4: Px4Section::default(),
             output: OutputSection::default(),
         }
     }
@@ -629,7 +637,14 @@ impl EdgeConfig {
         self.validate_source()?;
         self.validate_detector()?;
         self.validate_pose_inputs()?;
+        self.ros2.validate(&self.px4)?;
         self.validate_outputs()
+    }
+
+    /// Whether the onboard Zenoh (`[ros2]`'s endpoints) is opened: for ROS 2
+    /// topics, PX4's auxiliary global position, or PX4's attitude.
+    pub fn onboard_zenoh(&self) -> bool {
+        self.ros2.enabled || self.px4.enabled || self.attitude.kind == AttitudeKind::Px4
     }
 
     /// Ids and Zenoh endpoints.

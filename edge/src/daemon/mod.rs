@@ -9,6 +9,8 @@ pub mod config;
 pub mod frame_times;
 pub mod mavlink_out;
 pub mod queue;
+pub mod ros2_config;
+pub mod ros2_out;
 pub mod run;
 #[cfg(feature = "demo")]
 pub mod sim_source;

@@ -23,6 +23,7 @@ use zenoh::sample::Sample;
 use super::config::Pacing;
 use super::mavlink_out::{MavlinkOut, Received};
 use super::queue::DropOldest;
+use super::ros2_out::OnboardBus;
 use super::source::{CapturedFrame, FrameSource};
 use super::worker::{Detected, Worker, WorkerTotals};
 use crate::ShellError;
@@ -44,6 +45,8 @@ pub struct RunOptions {
     pub autopilot_log: Option<std::path::PathBuf>,
     /// The autopilot link, and what the autopilot sends on it.
     pub mavlink: Option<(MavlinkOut, tokio::sync::mpsc::Receiver<Received>)>,
+    /// ROS 2 topics and PX4 over the onboard Zenoh.
+    pub onboard: Option<OnboardBus>,
     pub annotate_dir: Option<std::path::PathBuf>,
     /// The detector's classes, each new landmark set checked against them
     /// (`None`: the oracle, which reports the surveyed types themselves).
@@ -80,6 +83,7 @@ enum Event {
     Correction(IdCorrection),
     Landmarks(Option<Sample>),
     Autopilot(Received),
+    Px4Time(u64),
     Timer,
 }
 
@@ -98,6 +102,7 @@ struct Sinks<'a> {
     jsonl: Option<std::io::BufWriter<std::fs::File>>,
     mavlink: Option<MavlinkOut>,
     mavlink_errors: u64,
+    onboard: Option<OnboardBus>,
     autopilot_log: Option<std::io::BufWriter<std::fs::File>>,
     annotate_dir: Option<std::path::PathBuf>,
     record: FlightRecord,
@@ -150,6 +155,7 @@ impl Daemon<'_> {
                 correction = node.next_correction() => Event::Correction(correction),
                 change = next_change(sync.as_deref()) => Event::Landmarks(change),
                 Some(message) = next_message(from_autopilot.as_mut()) => Event::Autopilot(message),
+                Some(t) = next_message(sinks.onboard.as_mut().and_then(OnboardBus::px4_times)) => Event::Px4Time(t),
                 () = tokio::time::sleep_until(deadline) => Event::Timer,
             };
             match event {
@@ -165,6 +171,7 @@ impl Daemon<'_> {
                 Event::Autopilot((from, message)) => {
                     core.handle_command(Instant::now(), Command::FromAutopilot { from, message })
                 }
+                Event::Px4Time(t) => core.handle_command(Instant::now(), Command::Px4Time(t)),
                 Event::Landmarks(change) => {
                     let changed =
                         changed_map(sync.as_deref_mut(), change, &datum, classes.as_deref());
@@ -218,6 +225,7 @@ impl<'a> Sinks<'a> {
             jsonl: open_jsonl(options.jsonl.as_deref())?,
             mavlink,
             mavlink_errors: 0,
+            onboard: options.onboard.take(),
             autopilot_log: open_jsonl(options.autopilot_log.as_deref())?,
             annotate_dir: options.annotate_dir.take(),
             record: FlightRecord::default(),
@@ -351,6 +359,11 @@ impl<'a> Sinks<'a> {
                         self.autopilot_log = None;
                     }
                 }
+                Output::Ros(output) => {
+                    if let Some(bus) = self.onboard.as_mut() {
+                        bus.publish(output).await;
+                    }
+                }
                 Output::Mavlink(message) => {
                     if let Some(out) = self.mavlink.as_mut()
                         && let Err(e) = out.send(&message)
@@ -464,7 +477,7 @@ async fn changed_map(
 
 /// The next landmark change, or never when there is no sync.
 /// The autopilot's next message; pending forever without a link, or once it closed.
-async fn next_message(rx: Option<&mut tokio::sync::mpsc::Receiver<Received>>) -> Option<Received> {
+async fn next_message<T>(rx: Option<&mut tokio::sync::mpsc::Receiver<T>>) -> Option<T> {
     match rx {
         Some(rx) => match rx.recv().await {
             Some(m) => Some(m),

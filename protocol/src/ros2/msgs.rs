@@ -446,6 +446,38 @@ mod tests {
         assert_eq!(x1.len(), 4 + 24 + 16 + 12 + 1);
     }
 
+    /// The same values as pycdr2 (Cyclone DDS's IDL layer) writes them.
+    #[test]
+    fn aux_global_position_is_byte_for_byte_what_cyclone_writes() {
+        let p = Px4GlobalPosition {
+            timestamp_us: 1,
+            timestamp_sample_us: 2,
+            id: 3,
+            lat_deg: 30.5,
+            lon_deg: 114.3,
+            alt_amsl_m: 40.0,
+            alt_ellipsoid_m: 0.0,
+            eph_m: 1.5,
+            epv_m: 2.5,
+            lat_lon_reset_counter: 4,
+        };
+        let hex = |b: Vec<u8>| {
+            b.iter()
+                .map(|x| format!("{x:02x}"))
+                .collect::<std::string::String>()
+        };
+        assert_eq!(
+            hex(p.to_cdr(Px4AuxMessage::AuxGlobalPosition, CdrVersion::Xcdr2)),
+            "000700000100000000000000020000000000000003020000000000000080\
+             3e403333333333935c40000020420000c03f0000204004"
+        );
+        assert_eq!(
+            hex(p.to_cdr(Px4AuxMessage::AuxGlobalPosition, CdrVersion::Xcdr1)),
+            "000100000100000000000000020000000000000003020000000000000000\
+             000000803e403333333333935c40000020420000c03f0000204004"
+        );
+    }
+
     #[test]
     fn vehicle_global_position_is_the_same_in_both_flavours() {
         let p = position();
