@@ -397,3 +397,108 @@ async fn px4_s_vehicle_attitude_is_an_attitude_source_and_a_clock() -> anyhow::R
     finish(child, &out)?;
     Ok(())
 }
+
+/// PX4's payloads written as classic CDR (`[px4] cdr = "xcdr1"`; rosbags
+/// reads no XCDR2, and v1.17's VehicleGlobalPosition is laid out the same in
+/// both), decoded by rosbags with `px4_msgs` registered from their `.msg` text.
+#[test]
+fn px4_payloads_decode_in_rosbags_as_px4_msgs_defines_them() -> anyhow::Result<()> {
+    use msgs::{Px4AuxMessage, Px4GlobalPosition};
+    use towernav_protocol::ros2::cdr::CdrVersion;
+    let Some(pythonpath) = towernav_tests::python_module("rosbags") else {
+        eprintln!("skipped: no rosbags (cargo xtask test installs it)");
+        return Ok(());
+    };
+    let fix = Px4GlobalPosition {
+        timestamp_us: 5_000_123_456,
+        timestamp_sample_us: 5_000_100_000,
+        id: 7,
+        lat_deg: 30.512_345_678,
+        lon_deg: 114.356_789_012,
+        alt_amsl_m: 48.25,
+        alt_ellipsoid_m: 36.5,
+        eph_m: 1.75,
+        epv_m: 3.5,
+        lat_lon_reset_counter: 2,
+    };
+    let lost = Px4GlobalPosition {
+        lat_deg: f64::NAN,
+        lon_deg: f64::NAN,
+        ..fix.clone()
+    };
+    let dir = tempfile::tempdir()?;
+    let mut args = Vec::new();
+    let cases = [
+        (
+            "agp",
+            &fix,
+            Px4AuxMessage::AuxGlobalPosition,
+            CdrVersion::Xcdr1,
+        ),
+        (
+            "vgp",
+            &fix,
+            Px4AuxMessage::VehicleGlobalPosition,
+            CdrVersion::Xcdr1,
+        ),
+        (
+            "lost",
+            &lost,
+            Px4AuxMessage::VehicleGlobalPosition,
+            CdrVersion::Xcdr1,
+        ),
+    ];
+    for (name, m, message, version) in &cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, m.to_cdr(*message, *version))?;
+        args.push(format!("{}={}", message.msg_type().name, path.display()));
+    }
+    let out = std::process::Command::new("python3")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("python/ros2_decode.py"))
+        .arg(fixtures())
+        .args(&args)
+        .env("PYTHONPATH", &pythonpath)
+        .output()?;
+    anyhow::ensure!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let decoded: Value = serde_json::from_slice(&out.stdout)?;
+    let get = |name: &str| decoded[dir.path().join(name).display().to_string()].clone();
+    let agp = get("agp");
+    assert_eq!(agp["timestamp"].as_u64(), Some(5_000_123_456));
+    assert_eq!(agp["timestamp_sample"].as_u64(), Some(5_000_100_000));
+    assert_eq!(
+        (agp["id"].as_u64(), agp["source"].as_u64()),
+        (Some(7), Some(2))
+    );
+    assert_eq!(agp["lat"].as_f64(), Some(30.512_345_678));
+    assert_eq!(agp["lon"].as_f64(), Some(114.356_789_012));
+    assert_eq!(
+        (
+            agp["alt"].as_f64(),
+            agp["eph"].as_f64(),
+            agp["epv"].as_f64()
+        ),
+        (Some(48.25), Some(1.75), Some(3.5))
+    );
+    assert_eq!(agp["lat_lon_reset_counter"].as_u64(), Some(2));
+    let vgp = get("vgp");
+    assert_eq!(vgp["lat"].as_f64(), Some(30.512_345_678));
+    assert_eq!(
+        (vgp["alt"].as_f64(), vgp["alt_ellipsoid"].as_f64()),
+        (Some(48.25), Some(36.5))
+    );
+    assert_eq!(vgp["lat_lon_valid"].as_bool(), Some(true));
+    assert_eq!(
+        (vgp["eph"].as_f64(), vgp["epv"].as_f64()),
+        (Some(1.75), Some(3.5))
+    );
+    assert_eq!(vgp["lat_lon_reset_counter"].as_u64(), Some(2));
+    assert_eq!(vgp["dead_reckoning"].as_bool(), Some(false));
+    let lost = get("lost");
+    assert!(lost["lat"].is_null() && lost["lon"].is_null());
+    assert_eq!(lost["lat_lon_valid"].as_bool(), Some(false));
+    Ok(())
+}
