@@ -9,7 +9,7 @@ use towernav_core::fix_keeper::FixRules;
 use towernav_core::ros_link::RosLinkConfig;
 use towernav_protocol::ros2::cdr::CdrVersion;
 use towernav_protocol::ros2::msgs::Px4AuxMessage;
-use towernav_protocol::ros2::rmw_zenoh::RosNode;
+use towernav_protocol::ros2::rmw_zenoh::{self, RosNode};
 
 use super::config::ConfigError;
 
@@ -49,9 +49,9 @@ impl Default for Ros2Section {
             domain_id: 0,
             namespace: String::new(),
             node: "towernav_edge".into(),
-            fix_topic: "towernav/fix".into(),
-            pose_topic: "towernav/pose".into(),
-            odometry_topic: "towernav/odometry".into(),
+            fix_topic: rmw_zenoh::FIX_TOPIC.into(),
+            pose_topic: rmw_zenoh::POSE_TOPIC.into(),
+            odometry_topic: rmw_zenoh::ODOMETRY_TOPIC.into(),
             map_frame: "map".into(),
             base_frame: "base_link".into(),
             rate_hz: 10.0,
@@ -251,7 +251,7 @@ mod tests {
             ),
             (
                 Ros2Section {
-                    fix_topic: "towernav/fix now".into(),
+                    fix_topic: "fix now".into(),
                     ..Default::default()
                 },
                 "ros2.fix_topic",

@@ -223,12 +223,7 @@ impl OnboardBus {
         // PX4's attitude: its clock for PX4's stamps, and an attitude source.
         let attitude_topic = px4_config.topic_in_namespace(&px4_config.attitude_topic);
         // Any type hash: PX4 releases differ; the payload's layout is the same.
-        let attitude_key = format!(
-            "{}/{}/{}/*",
-            node.domain_id,
-            attitude_topic.trim_matches('/'),
-            msgs::VEHICLE_ATTITUDE.dds_name()
-        );
+        let attitude_key = node.topic_key_any_hash(&attitude_topic, &msgs::VEHICLE_ATTITUDE);
         let sink = latest.clone();
         let garbage = Arc::new(Mutex::new(towernav_core::log_limit::LogLimiter::default()));
         let subscriber = session

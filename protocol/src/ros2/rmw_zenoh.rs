@@ -14,6 +14,11 @@ use super::type_hash::MsgType;
 /// What distributions before Jazzy put where the hash goes.
 pub const TYPE_HASH_NOT_SUPPORTED: &str = "TypeHashNotSupported";
 
+/// The edge's ROS 2 topics, relative to its namespace.
+pub const FIX_TOPIC: &str = "towernav/fix";
+pub const POSE_TOPIC: &str = "towernav/pose";
+pub const ODOMETRY_TOPIC: &str = "towernav/odometry";
+
 /// A ROS node's place in the graph.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RosNode {
@@ -87,6 +92,17 @@ impl RosNode {
             self.fully_qualified(topic).trim_matches('/'),
             t.dds_name(),
             self.hash_of(t)
+        )
+    }
+
+    /// A topic's key whatever the type's hash (a subscriber that takes
+    /// every release of a type whose layout has not changed).
+    pub fn topic_key_any_hash(&self, topic: &str, t: &MsgType) -> String {
+        format!(
+            "{}/{}/{}/*",
+            self.domain_id,
+            self.fully_qualified(topic).trim_matches('/'),
+            t.dds_name()
         )
     }
 
@@ -229,6 +245,10 @@ mod tests {
         let mut n = node(0, "/uav7", "towernav_edge");
         assert_eq!(n.fully_qualified("/fmu/in/x"), "/fmu/in/x");
         assert_eq!(n.fully_qualified("towernav/fix"), "/uav7/towernav/fix");
+        assert_eq!(
+            n.topic_key_any_hash("/fmu/out/vehicle_attitude", &STRING),
+            "0/fmu/out/vehicle_attitude/std_msgs::msg::dds_::String_/*"
+        );
         n.type_hash = false;
         assert_eq!(
             n.topic_key("towernav/fix", &STRING),
