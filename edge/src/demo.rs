@@ -72,7 +72,10 @@ impl Sim {
             }
             DetectorKind::Oracle => SimRender::Never,
         };
-        Box::new(SimSource::new(s.clone(), render, config.source.max_frames))
+        Box::new(
+            SimSource::new(s.clone(), render, config.source.max_frames)
+                .with_stall(config.source.stall),
+        )
     }
 }
 

@@ -137,13 +137,22 @@ impl Certificates {
 }
 
 /// A `zenohd` child process, killed when dropped.
-struct Zenohd(std::process::Child);
+pub struct Zenohd(std::process::Child);
 
 impl Drop for Zenohd {
     fn drop(&mut self) {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
+}
+
+/// A plain (no TLS) `zenohd` on `endpoint`, once its port accepts.
+pub async fn start_plain_zenohd(
+    bin: &std::path::Path,
+    endpoint: &str,
+    dir: &std::path::Path,
+) -> anyhow::Result<Zenohd> {
+    start_zenohd(bin, endpoint, None, dir).await
 }
 
 /// Starts `zenohd` listening on `endpoint` and waits until its port accepts.

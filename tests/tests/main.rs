@@ -6,6 +6,7 @@ mod coco_start;
 mod debian_package;
 mod detector;
 mod edge_daemon;
+mod faults;
 mod fleet;
 mod fleet_attacks;
 mod fleet_security;

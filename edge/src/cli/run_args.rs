@@ -60,6 +60,10 @@ pub struct RunArgs {
     /// Stop after this many frames.
     #[arg(long)]
     pub max_frames: Option<u64>,
+    /// Rehearse a camera failure: the simulator's camera stops at AT_S of
+    /// the flight for FOR_S seconds (`--stall 20,5`).
+    #[arg(long, value_delimiter = ',', num_args = 2, value_names = ["AT_S", "FOR_S"])]
+    pub stall: Option<Vec<f64>>,
     /// How recorded frames are timed: pts (a video's), rate (index over
     /// --fps), names, names_ms, names_us, names_ns, or a timestamps file.
     #[arg(long)]
@@ -175,6 +179,12 @@ impl RunArgs {
         }
         if let Some(v) = self.max_frames {
             c.source.max_frames = Some(v);
+        }
+        if let Some(v) = &self.stall {
+            c.source.stall = match v[..] {
+                [at_s, for_s] => Some([at_s, for_s]),
+                _ => anyhow::bail!("--stall takes AT_S,FOR_S"),
+            };
         }
         if let Some(v) = &self.attitude {
             c.attitude.kind = kind(v)?;

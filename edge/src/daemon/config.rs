@@ -118,6 +118,11 @@ pub struct SourceSection {
     pub speed: Option<f64>,
     /// Frames waiting for the pipeline; when full, the oldest is dropped.
     pub queue: usize,
+    /// The simulator's camera stops at `[at_s, for_s]`: at that flight time,
+    /// for that many seconds, to rehearse a camera failure (what the ground
+    /// station and the autopilot are told, and the recovery).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stall: Option<[f64; 2]>,
 }
 
 /// How frames are fed to the pipeline.
@@ -505,6 +510,7 @@ impl Default for SourceSection {
             max_frames: None,
             speed: None,
             queue: 2,
+            stall: None,
         }
     }
 }
@@ -695,6 +701,20 @@ impl EdgeConfig {
                 "source.width/height",
                 format!("{}x{} is not a camera size", s.width, s.height),
             );
+        }
+        if let Some([at_s, for_s]) = s.stall {
+            if s.kind != SourceKind::Sim {
+                return invalid(
+                    "source.stall",
+                    "a stall is rehearsed with the simulator only".into(),
+                );
+            }
+            if !(at_s >= 0.0 && (0.0..=600.0).contains(&for_s)) {
+                return invalid(
+                    "source.stall",
+                    format!("[{at_s}, {for_s}]: a start of 0 s or more, 0 to 600 s long"),
+                );
+            }
         }
         if let Some(speed) = s.speed {
             if speed.is_nan() || speed < 0.0 {

@@ -7,6 +7,7 @@
 pub mod attitude;
 pub mod config;
 pub mod frame_times;
+pub mod jsonl_log;
 pub mod mavlink_out;
 pub mod queue;
 pub mod ros2_config;

@@ -4,7 +4,6 @@
 //! core's timer), hands it to the core, and sends what the core returns:
 //! Zenoh, MAVLink, the JSONL log, previews and annotated frames.
 
-use std::io::Write;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -21,6 +20,7 @@ use towernav_protocol::{IdCorrection, PoseEstimate, Preview, TowerType, TrackRep
 use zenoh::sample::Sample;
 
 use super::config::Pacing;
+use super::jsonl_log::JsonlLog;
 use super::mavlink_out::{MavlinkOut, Received};
 use super::queue::DropOldest;
 use super::ros2_out::OnboardBus;
@@ -99,11 +99,11 @@ struct Processed {
 struct Sinks<'a> {
     node: &'a EdgeNode,
     datum: Datum,
-    jsonl: Option<std::io::BufWriter<std::fs::File>>,
+    jsonl: Option<JsonlLog>,
     mavlink: Option<MavlinkOut>,
     mavlink_errors: u64,
     onboard: Option<OnboardBus>,
-    autopilot_log: Option<std::io::BufWriter<std::fs::File>>,
+    autopilot_log: Option<JsonlLog>,
     annotate_dir: Option<std::path::PathBuf>,
     record: FlightRecord,
     pacing: Pacing,
@@ -198,12 +198,6 @@ impl Daemon<'_> {
         if source_thread.is_finished() {
             let _ = source_thread.join();
         }
-        for log in [sinks.jsonl.as_mut(), sinks.autopilot_log.as_mut()]
-            .into_iter()
-            .flatten()
-        {
-            let _ = log.flush();
-        }
         let failed = totals.failed + failed_source.load(Ordering::Relaxed);
         let summary = sinks.summary(&core, &totals, failed, queue.dropped(), &options);
         log_stop(&summary, options.pacing);
@@ -222,11 +216,11 @@ impl<'a> Sinks<'a> {
         Ok(Self {
             node,
             datum,
-            jsonl: open_jsonl(options.jsonl.as_deref())?,
+            jsonl: open_jsonl(options.jsonl.as_deref(), "pose log")?,
             mavlink,
             mavlink_errors: 0,
             onboard: options.onboard.take(),
-            autopilot_log: open_jsonl(options.autopilot_log.as_deref())?,
+            autopilot_log: open_jsonl(options.autopilot_log.as_deref(), "autopilot log")?,
             annotate_dir: options.annotate_dir.take(),
             record: FlightRecord::default(),
             pacing: options.pacing,
@@ -352,10 +346,8 @@ impl<'a> Sinks<'a> {
                 Output::Ack(ack) => self.node.acknowledge(&ack).await?,
                 Output::AutopilotPosition(position) => {
                     if let Some(log) = self.autopilot_log.as_mut()
-                        && let Ok(line) = serde_json::to_string(&position)
-                        && writeln!(log, "{line}").is_err()
+                        && !log.line(&position)
                     {
-                        tracing::warn!("the autopilot log could not be written; stopping it");
                         self.autopilot_log = None;
                     }
                 }
@@ -414,10 +406,8 @@ impl<'a> Sinks<'a> {
 
     fn log_pose(&mut self, pose: &PoseEstimate) {
         if let Some(log) = self.jsonl.as_mut()
-            && let Ok(line) = serde_json::to_string(pose)
-            && writeln!(log, "{line}").is_err()
+            && !log.line(pose)
         {
-            tracing::warn!("the JSONL log could not be written; stopping it");
             self.jsonl = None;
         }
     }
@@ -545,13 +535,9 @@ fn spawn_source(
 
 fn open_jsonl(
     path: Option<&std::path::Path>,
-) -> Result<Option<std::io::BufWriter<std::fs::File>>, ShellError> {
-    path.map(|path| {
-        std::fs::File::create(path)
-            .map(std::io::BufWriter::new)
-            .map_err(|e| ShellError::Daemon(format!("creating the log {}: {e}", path.display())))
-    })
-    .transpose()
+    what: &'static str,
+) -> Result<Option<JsonlLog>, ShellError> {
+    path.map(|path| JsonlLog::create(path, what)).transpose()
 }
 
 fn log_stop(summary: &RunSummary, pacing: Pacing) {

@@ -33,6 +33,18 @@ pub struct SimSource {
     mode: SimRender,
     max_frames: u64,
     barometer: towernav_sim::Barometer,
+    /// A camera failure to rehearse: from this flight time, this long.
+    stall: Option<Stall>,
+}
+
+/// The simulated camera stops at `at_s` of the flight for `for_s` seconds
+/// of wall time; the frames it would have taken meanwhile are lost, as a
+/// real camera's are.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stall {
+    pub at_s: f64,
+    pub for_s: f64,
+    pub done: bool,
 }
 
 impl SimSource {
@@ -54,13 +66,42 @@ impl SimSource {
             render,
             mode,
             max_frames: max_frames.unwrap_or(u64::MAX),
+            stall: None,
         }
+    }
+
+    /// With a camera stall to rehearse, `[at_s, for_s]`.
+    pub fn with_stall(mut self, stall: Option<[f64; 2]>) -> Self {
+        self.stall = stall.map(|[at_s, for_s]| Stall {
+            at_s,
+            for_s,
+            done: false,
+        });
+        self
     }
 }
 
 impl FrameSource for SimSource {
     fn next_frame(&mut self) -> Option<Result<CapturedFrame, SourceError>> {
-        let (truth, frame) = self.frames.next()?;
+        let (truth, frame) = loop {
+            let (truth, frame) = self.frames.next()?;
+            match &mut self.stall {
+                Some(stall)
+                    if frame.time_s >= stall.at_s && frame.time_s < stall.at_s + stall.for_s =>
+                {
+                    if !stall.done {
+                        stall.done = true;
+                        tracing::warn!(
+                            at_s = stall.at_s,
+                            for_s = stall.for_s,
+                            "simulated camera stalls"
+                        );
+                        std::thread::sleep(std::time::Duration::from_secs_f64(stall.for_s));
+                    }
+                }
+                _ => break (truth, frame),
+            }
+        };
         if frame.seq >= self.max_frames {
             return None;
         }
