@@ -108,6 +108,15 @@ enum Task {
     Quantize,
     /// The edge daemon end to end on 1280x720 camera frames with the shipped detector: frames/s, latency, peak RSS.
     BenchEdge,
+    /// A long flight through the edge daemon: peak RSS, latency p99 and lost poses per minute of flight.
+    Soak {
+        /// Minutes of flight (the simulator flies as fast as the daemon goes).
+        #[arg(long, default_value_t = 60.0)]
+        minutes: f64,
+        /// `oracle` (the simulator's boxes) or `yolo` (rendered frames through the detector).
+        #[arg(long, default_value = "oracle")]
+        detector: String,
+    },
     /// A screenshot of the ground station's real window under Xvfb, beside a demo edge (docs/ground-station.png).
     Screenshot {
         /// Seconds of flight before the picture.
@@ -180,6 +189,7 @@ impl Task {
         match self {
             Self::Demo(args) if args.detector == "oracle" => vec![],
             Self::Demo(_) | Self::BenchEdge => vec![OnnxRuntime],
+            Self::Soak { detector, .. } if detector != "oracle" => vec![OnnxRuntime],
             Self::Test => vec![LintComponents, OnnxRuntime, Ffmpeg, Pymavlink],
             Self::Screenshot { .. } => vec![Xvfb],
             // The model card scores the finished run with the edge's detector.
@@ -189,6 +199,7 @@ impl Task {
             | Self::Quantize
             | Self::SetupOrt
             | Self::Zenohd
+            | Self::Soak { .. }
             | Self::Cross { .. }
             | Self::Deb { .. } => {
                 vec![]
@@ -294,6 +305,7 @@ fn main() -> anyhow::Result<()> {
         Task::Gs => ground_station(&root),
         Task::Test => test(&root, ort.as_deref()),
         Task::BenchEdge => bench_edge::bench_edge(&root, ort.as_deref()),
+        Task::Soak { minutes, detector } => soak(&root, minutes, &detector, ort.as_deref()),
         Task::Screenshot { seconds } => screenshot::screenshot(&root, seconds),
         Task::Quantize => train::quantize(&root),
         Task::SetupOrt => ensure_onnxruntime(&root).map(|_| ()),
@@ -399,6 +411,38 @@ fn onnxruntime_from_wheel(dir: &Path, pip_args: &[&str]) -> anyhow::Result<PathB
 
 fn target_dir(root: &Path) -> PathBuf {
     std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from)
+}
+
+/// `cargo xtask soak`: the daemon built for release, then the soak bench against it.
+fn soak(root: &Path, minutes: f64, detector: &str, ort: Option<&Path>) -> anyhow::Result<()> {
+    let bin = build_release(root, &["towernav-edge"])?;
+    let edge = bin.join("towernav-edge");
+    let out = target_dir(root).join("soak");
+    let mut env = vec![];
+    let ort = ort.map(|p| p.display().to_string());
+    if let Some(ort) = &ort {
+        env.push(("ORT_DYLIB_PATH", ort.as_str()));
+    }
+    cargo_with(
+        root,
+        &[
+            "bench",
+            "-p",
+            "towernav-tests",
+            "--bench",
+            "soak",
+            "--",
+            "--edge",
+            &edge.display().to_string(),
+            "--minutes",
+            &minutes.to_string(),
+            "--detector",
+            detector,
+            "--out",
+            &out.display().to_string(),
+        ],
+        &env,
+    )
 }
 
 /// Builds these packages' release binaries; returns the folder they are in.
@@ -544,7 +588,15 @@ fn test(root: &Path, ort: Option<&Path>) -> anyhow::Result<()> {
         })
         .map_err(|e| eprintln!("xtask: no aarch64 build here ({e:#}): its tests are skipped"))
         .ok();
+    // A real router for the fault suite's restart, built once beside the
+    // target cache (outside the clone, so CI keeps it between runs).
+    let zenohd = zenohd::ensure_zenohd_in(root, &target_dir(root).with_file_name("zenohd"))
+        .map_err(|e| eprintln!("xtask: no zenohd here ({e:#}): its restart test is skipped"))
+        .ok();
     let mut tests = clippy.cargo(root);
+    if let Some(zenohd) = &zenohd {
+        tests.env("TOWERNAV_ZENOHD", zenohd);
+    }
     tests
         .args(["test", "--workspace", "--no-fail-fast"])
         .env("ORT_DYLIB_PATH", ort)

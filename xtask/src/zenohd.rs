@@ -28,8 +28,19 @@ fn locked_zenoh(root: &Path) -> anyhow::Result<String> {
 /// `.zenohd/bin/zenohd`, installed with `cargo install` if missing or of
 /// another version (a few minutes of building, once).
 pub fn ensure_zenohd(root: &Path) -> anyhow::Result<PathBuf> {
+    install(root, &root.join(".zenohd"), None)
+}
+
+/// The same, installed under `base/<version>/`; its build's own target
+/// folder is `base/build`, so a rebuild reuses what it compiled.
+pub fn ensure_zenohd_in(root: &Path, base: &Path) -> anyhow::Result<PathBuf> {
     let version = locked_zenoh(root)?;
-    let dir = root.join(".zenohd");
+    install(root, &base.join(&version), Some(&base.join("build")))
+}
+
+fn install(root: &Path, dir: &Path, target: Option<&Path>) -> anyhow::Result<PathBuf> {
+    let version = locked_zenoh(root)?;
+    let dir = dir.to_path_buf();
     let bin = dir.join("bin").join("zenohd");
     let stamp = dir.join("version");
     if bin.exists() && std::fs::read_to_string(&stamp).ok().as_deref() == Some(version.as_str()) {
@@ -41,6 +52,12 @@ pub fn ensure_zenohd(root: &Path) -> anyhow::Result<PathBuf> {
         .arg(format!("={version}"))
         .arg("--root")
         .arg(&dir)
+        .args(
+            target
+                .map(|t| ["--target-dir".as_ref(), t.as_os_str()])
+                .into_iter()
+                .flatten(),
+        )
         .status()
         .context("running cargo install zenohd")?;
     anyhow::ensure!(status.success(), "cargo install zenohd {version} failed");
