@@ -28,6 +28,8 @@ use crate::wire::{pose_estimate, track_report};
 
 /// How often the status heartbeat goes out.
 pub const STATUS_EVERY: Duration = Duration::from_secs(1);
+/// How many corrections' answers are kept to recognise a repeat.
+pub const ANSWERED_KEPT: usize = 256;
 /// A source silent this long is reported as failed, not merely degraded.
 pub const STALL_FAILED_AFTER: Duration = Duration::from_secs(3);
 
@@ -159,6 +161,8 @@ pub struct DaemonCore {
     last_preview: Option<Instant>,
     autopilot: Option<AutopilotLink>,
     ros: Option<RosLink>,
+    /// The last corrections' answers, by request id: a repeat gets its answer again.
+    answered: VecDeque<CorrectionAck>,
     /// The autopilot sends ALTITUDE: its relative altitude is preferred to
     /// GLOBAL_POSITION_INT's.
     altitude_source_seen: bool,
@@ -188,6 +192,7 @@ impl DaemonCore {
             last_preview: None,
             autopilot: None,
             ros: None,
+            answered: VecDeque::new(),
             altitude_source_seen: false,
         }
     }
@@ -295,6 +300,17 @@ impl DaemonCore {
     pub fn handle_command(&mut self, now: Instant, command: Command) {
         match command {
             Command::Correct(c) => {
+                // The same request again (resent by a restarted ground
+                // station, or delivered twice): answered as before, never
+                // applied twice, since a later correction may have undone it.
+                if let Some(ack) = self.answered.iter().find(|a| a.request_id == c.request_id) {
+                    tracing::info!(
+                        request = c.request_id,
+                        "a correction already answered: not applied again"
+                    );
+                    self.outputs.push_back(Output::Ack(ack.clone()));
+                    return;
+                }
                 let result = if c.session.is_some_and(|s| s != self.config.session) {
                     Err(format!(
                         "track {} was picked in an earlier run of this edge; track numbers \
@@ -307,12 +323,17 @@ impl DaemonCore {
                     self.pipeline.pin(c.track_id, c.tower_id.as_deref())
                 };
                 tracing::info!(track = c.track_id, tower = ?c.tower_id, ok = result.is_ok(), "operator correction");
-                self.outputs.push_back(Output::Ack(CorrectionAck {
+                let ack = CorrectionAck {
                     uav: self.config.uav.clone(),
                     request_id: c.request_id,
                     accepted: result.is_ok(),
                     reason: result.err(),
-                }));
+                };
+                if self.answered.len() == ANSWERED_KEPT {
+                    self.answered.pop_front();
+                }
+                self.answered.push_back(ack.clone());
+                self.outputs.push_back(Output::Ack(ack));
             }
             Command::ReplaceMap(map) => {
                 tracing::info!(towers = map.towers.len(), "landmarks replaced");

@@ -458,3 +458,74 @@ fn an_optical_flow_sensor_s_velocity_carries_the_coast() {
     assert!(still.abs() < 0.3, "hovering: {still}");
     assert!((moving - 2.0).abs() < 0.3, "the flow's 2 m/s: {moving}");
 }
+
+#[test]
+fn a_repeated_correction_is_answered_again_and_not_applied_twice() {
+    use crate::fixtures::det;
+    let start = Instant::now();
+    let mut core = core(start, None);
+    // One tower box, frame after frame: a live track.
+    let mut seen = |core: &mut DaemonCore, seq: u64| -> Vec<Output> {
+        let at = start + Duration::from_millis(33 * seq);
+        let mut f = frame(seq, at, start);
+        f.detections = vec![det(600.0, towernav_protocol::TowerType::B, 0.9)];
+        core.handle_frame(at, f);
+        drain(core)
+    };
+    let mut outputs = Vec::new();
+    for seq in 0..5 {
+        outputs = seen(&mut core, seq);
+    }
+    let track = outputs
+        .iter()
+        .find_map(|o| match o {
+            Output::Tracks(t) => t.tracks.first().map(|t| t.track_id),
+            _ => None,
+        })
+        .expect("a live track");
+    let correction = |request_id: u64, release: bool| {
+        Command::Correct(IdCorrection {
+            uav: NodeId::new("uav1").expect("an id"),
+            request_id,
+            track_id: track,
+            tower_id: Some("T1".into()),
+            issued_by: "operator".into(),
+            release,
+            session: None,
+        })
+    };
+    let acks = |outputs: Vec<Output>| -> Vec<CorrectionAck> {
+        outputs
+            .into_iter()
+            .filter_map(|o| match o {
+                Output::Ack(a) => Some(a),
+                _ => None,
+            })
+            .collect()
+    };
+    let pinned = |outputs: &[Output]| {
+        outputs.iter().find_map(|o| match o {
+            Output::Tracks(t) => t
+                .tracks
+                .iter()
+                .find(|t| t.track_id == track)
+                .map(|t| t.pinned),
+            _ => None,
+        })
+    };
+    core.handle_command(start, correction(11, false));
+    let first = acks(drain(&mut core));
+    assert!(first[0].accepted, "{first:?}");
+    assert_eq!(pinned(&seen(&mut core, 5)), Some(true));
+    core.handle_command(start, correction(12, true));
+    assert!(acks(drain(&mut core))[0].accepted);
+    assert_eq!(pinned(&seen(&mut core, 6)), Some(false), "released");
+    // 11 again, after 12: the same answer, and the release stands.
+    core.handle_command(start, correction(11, false));
+    assert_eq!(acks(drain(&mut core)), first, "answered as before");
+    assert_eq!(pinned(&seen(&mut core, 7)), Some(false), "not pinned again");
+    // A new request id is a new correction.
+    core.handle_command(start, correction(13, false));
+    assert!(acks(drain(&mut core))[0].accepted);
+    assert_eq!(pinned(&seen(&mut core, 8)), Some(true));
+}

@@ -69,7 +69,8 @@ pub struct QuadParams {
     pub wind: WindParams,
     /// Integration and sampling step, s.
     pub dt_s: f64,
-    /// Give up after this long even if the last waypoint was not reached.
+    /// Give up after this long (or three times the plan's nominal time,
+    /// if longer) even if the last waypoint was not reached.
     pub max_duration_s: f64,
 }
 
@@ -161,7 +162,16 @@ pub fn fly(plan: &FlightPlan, params: &QuadParams, seed: u64) -> Trajectory {
     let mut gust = Vector2::zeros();
     let mut leg = 0;
     let mut samples = Vec::new();
-    let max_steps = (params.max_duration_s / dt) as usize;
+    // A long plan (laps for a soak) is given three times its nominal time.
+    let nominal_s: f64 = wps
+        .windows(2)
+        .map(|w| {
+            let leg = Point3::new(w[1].east_m, w[1].north_m, w[1].height_m)
+                - Point3::new(w[0].east_m, w[0].north_m, w[0].height_m);
+            leg.norm() / w[1].speed_mps.max(0.1)
+        })
+        .sum();
+    let max_steps = (params.max_duration_s.max(3.0 * nominal_s) / dt) as usize;
     let max_horizontal = GRAVITY * params.max_tilt_rad.tan();
     let loop_limits = AxisLimits {
         tau_s: params.attitude_tau_s,
