@@ -465,7 +465,7 @@ fn a_repeated_correction_is_answered_again_and_not_applied_twice() {
     let start = Instant::now();
     let mut core = core(start, None);
     // One tower box, frame after frame: a live track.
-    let mut seen = |core: &mut DaemonCore, seq: u64| -> Vec<Output> {
+    let seen = |core: &mut DaemonCore, seq: u64| -> Vec<Output> {
         let at = start + Duration::from_millis(33 * seq);
         let mut f = frame(seq, at, start);
         f.detections = vec![det(600.0, towernav_protocol::TowerType::B, 0.9)];
