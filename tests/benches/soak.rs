@@ -70,6 +70,9 @@ fn rss_mib(pid: u32) -> Option<f64> {
     Some(kib / 1024.0)
 }
 
+/// Wall seconds that count as warm-up whatever the flight's speed.
+const WARM_UP_WALL_S: f64 = 10.0;
+
 #[derive(Default)]
 struct Minute {
     rss_mib: f64,
@@ -164,8 +167,8 @@ async fn main() -> anyhow::Result<()> {
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} s of flight, {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    // (flight seconds at the sample, RSS MiB)
-    let mut rss: Vec<(f64, f64)> = Vec::new();
+    // (flight seconds at the sample, wall seconds, RSS MiB)
+    let mut rss: Vec<(f64, f64, f64)> = Vec::new();
     let status = loop {
         if let Some(status) = child.try_wait()? {
             break status;
@@ -176,7 +179,7 @@ async fn main() -> anyhow::Result<()> {
             .last()
             .map_or(0.0, |s| s.0);
         if let Some(r) = rss_mib(pid) {
-            rss.push((flight_s, r));
+            rss.push((flight_s, started.elapsed().as_secs_f64(), r));
             progress.set_position(flight_s as u64);
             progress.set_message(format!("RSS {r:.0} MiB"));
         }
@@ -201,7 +204,7 @@ async fn main() -> anyhow::Result<()> {
     let minutes = (args.minutes.ceil() as usize).max(1);
     let mut table: Vec<Minute> = (0..minutes).map(|_| Minute::default()).collect();
     let minute_of = |s: f64| ((s / 60.0) as usize).min(minutes - 1);
-    for (s, r) in &rss {
+    for (s, _, r) in &rss {
         let m = &mut table[minute_of(*s)];
         m.rss_mib = m.rss_mib.max(*r);
     }
@@ -229,12 +232,21 @@ async fn main() -> anyhow::Result<()> {
             m.poses
         )?;
     }
-    let first = table[0].rss_mib;
-    let later = table[1.min(minutes - 1)..]
+    // Warm-up: the first minute of flight, or the daemon's first 10 s where
+    // the flight runs faster than real time (a minute of it is then a second
+    // or two, too short for the daemon to reach its working size).
+    let warm = |flight_s: f64, wall_s: f64| flight_s < 60.0 || wall_s < WARM_UP_WALL_S;
+    let first = rss
         .iter()
-        .map(|m| m.rss_mib)
+        .filter(|(f, w, _)| warm(*f, *w))
+        .map(|(_, _, r)| *r)
         .fold(0.0, f64::max);
-    let growth = if minutes > 1 {
+    let later = rss
+        .iter()
+        .filter(|(f, w, _)| !warm(*f, *w))
+        .map(|(_, _, r)| *r)
+        .fold(0.0, f64::max);
+    let growth = if later > 0.0 {
         100.0 * (later - first) / first
     } else {
         0.0
@@ -255,7 +267,8 @@ async fn main() -> anyhow::Result<()> {
         wall_s / 60.0
     );
     println!(
-        "  peak RSS: first minute {first:.1} MiB, after it at most {later:.1} MiB ({growth:+.1} %)"
+        "  peak RSS: warm-up (first minute of flight, or {WARM_UP_WALL_S} s) {first:.1} MiB, after it at most {later:.1} MiB ({growth:+.1} %); peak of minute 1 {:.1} MiB",
+        table[0].rss_mib
     );
     println!("  latency p99 per minute: {p99_lo:.2} to {p99_hi:.2} ms");
     println!(

@@ -200,6 +200,13 @@ async fn a_camera_stall_is_told_at_once_and_the_edge_recovers_by_itself() -> any
         panic!("a fix, then NO_FIX in the stall: {kinds:?}");
     };
     assert!(first_3d < lost);
+    eprintln!(
+        "camera stall: status not ok from the first status without frames; NO_FIX {:.2} s after it",
+        fixes[lost]
+            .0
+            .saturating_duration_since(stalled_at)
+            .as_secs_f64()
+    );
     assert!(
         kinds[lost..].contains(&GpsFixType::GPS_FIX_TYPE_3D_FIX),
         "a 3-D fix again after the stall: {kinds:?}"
@@ -367,6 +374,15 @@ async fn router_restart(zenohd: Option<&std::path::Path>) -> anyhow::Result<()> 
         gs.links.iter().map(|(_, l)| *l).collect::<Vec<_>>()
     );
     let resumed = after.expect("poses after the router came back");
+    eprintln!(
+        "router restart ({}): poses resumed {:.2} s after the router came back",
+        if zenohd.is_some() {
+            "zenohd"
+        } else {
+            "in-process"
+        },
+        resumed.duration_since(up).as_secs_f64()
+    );
     assert!(
         resumed.duration_since(up) < Duration::from_secs(5),
         "poses resumed {:?} after the router",
