@@ -372,6 +372,28 @@ async fn reading_another_uav(topology: Topology) -> anyhow::Result<()> {
         .declare_subscriber(keys().all_uavs(Topic::Pose))
         .await
         .map_err(z)?;
+    // Declarations travel both ways before anything is sent: the ground
+    // station sees the edge's token (on a loaded machine it takes seconds),
+    // then a moment for its own subscriptions to reach the edge.
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(15);
+    loop {
+        let alive = gs
+            .liveliness()
+            .get(keys().all_alive())
+            .timeout(Duration::from_secs(1))
+            .await
+            .map_err(z)?;
+        let mut seen = false;
+        while let Ok(reply) = alive.recv_async().await {
+            seen |= reply
+                .result()
+                .is_ok_and(|s| s.key_expr().as_str().ends_with("uav-7"));
+        }
+        if seen || tokio::time::Instant::now() > deadline {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
     tokio::time::sleep(Duration::from_millis(800)).await;
 
     edge.publish_pose(&pose("uav-7", 60.0, 10.0, 1)).await?;
