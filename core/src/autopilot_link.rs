@@ -31,6 +31,7 @@ use towernav_protocol::{EdgeState, Health, PoseEstimate};
 use crate::autopilot::{global_position, gps_input, heartbeat, odometry, status_text};
 pub use crate::fix_keeper::LinkEstimate;
 use crate::fix_keeper::{FixKeeper, FixKind, FixRules};
+use crate::unix_clock::UnixClock;
 
 /// How often HEARTBEAT goes out (MAVLink's microservices expect 1 Hz).
 pub const HEARTBEAT_EVERY: Duration = Duration::from_secs(1);
@@ -106,22 +107,6 @@ pub struct AutopilotPosition {
     pub height_m: f64,
     /// Heading, radians clockwise from north, when known.
     pub heading_rad: Option<f64>,
-}
-
-/// UTC as an offset from the monotonic clock: set at start, reset by the
-/// autopilot's SYSTEM_TIME when it has GNSS time.
-#[derive(Debug, Clone, Copy)]
-struct UnixClock {
-    at: Instant,
-    unix_us: u64,
-}
-
-impl UnixClock {
-    fn unix_us(&self, now: Instant) -> u64 {
-        let since = now.saturating_duration_since(self.at).as_micros() as u64;
-        let before = self.at.saturating_duration_since(now).as_micros() as u64;
-        (self.unix_us + since).saturating_sub(before)
-    }
 }
 
 /// Autopilots send SYSTEM_TIME with 0 until they have GNSS time; any time

@@ -28,6 +28,7 @@ pub mod ros_link;
 pub mod survey_labels;
 pub mod tower_map;
 pub mod tracker;
+pub mod unix_clock;
 pub mod wire;
 
 #[cfg(test)]

@@ -29,6 +29,7 @@ use towernav_protocol::{EdgeState, PoseEstimate};
 
 use crate::filter::horizontal_sigma;
 use crate::fix_keeper::{FixKeeper, FixKind, FixRules, LinkEstimate};
+use crate::unix_clock::UnixClock;
 
 /// What the link is told once, at start.
 #[derive(Debug, Clone, PartialEq)]
@@ -60,7 +61,7 @@ pub enum RosOutput {
 /// The variance put on what is not measured (the twist's angular rates).
 pub const UNMEASURED_VARIANCE: f64 = 1e6;
 
-/// PX4's clock against ours: its `vehicle_attitude` stamps lag their arrival
+/// PX4's clock against UTC: its `vehicle_attitude` stamps lag their arrival
 /// by the link's latency, so the largest offset seen is the best; it is let
 /// down slowly (the clocks drift) and reset when PX4 reboots.
 #[derive(Debug, Clone, Copy)]
@@ -78,8 +79,7 @@ pub struct RosLink {
     config: RosLinkConfig,
     fix: FixKeeper,
     geoid: GeoidCache,
-    start: Instant,
-    start_unix_us: u64,
+    clock: UnixClock,
     px4_clock: Option<Px4Clock>,
     next: Instant,
     /// Counts re-acquisitions after a lost fix, for PX4's reset counter.
@@ -96,8 +96,10 @@ impl RosLink {
             fix: FixKeeper::new(config.fix, datum),
             config,
             geoid: GeoidCache::default(),
-            start: now,
-            start_unix_us: unix_now_us,
+            clock: UnixClock {
+                at: now,
+                unix_us: unix_now_us,
+            },
             px4_clock: None,
             next: now,
             resets: 0,
@@ -121,7 +123,7 @@ impl RosLink {
     /// PX4's time since boot, microseconds, as a message stamped it that
     /// arrived at `now`.
     pub fn handle_px4_time(&mut self, now: Instant, px4_us: u64) {
-        let sample = px4_us as f64 - self.micros(now);
+        let sample = px4_us as f64 - self.clock.unix_us(now) as f64;
         self.px4_clock = Some(match self.px4_clock {
             Some(kept) => {
                 let slack =
@@ -147,17 +149,7 @@ impl RosLink {
     /// PX4's clock at `now`, once it has been seen.
     pub fn px4_time_us(&self, now: Instant) -> Option<u64> {
         self.px4_clock
-            .map(|c| (self.micros(now) + c.offset_us).max(0.0) as u64)
-    }
-
-    fn micros(&self, now: Instant) -> f64 {
-        let after = now.saturating_duration_since(self.start).as_secs_f64();
-        let before = self.start.saturating_duration_since(now).as_secs_f64();
-        (after - before) * 1e6
-    }
-
-    fn unix_us(&self, now: Instant) -> u64 {
-        (self.start_unix_us as f64 + self.micros(now)).max(0.0) as u64
+            .map(|c| (self.clock.unix_us(now) as f64 + c.offset_us).max(0.0) as u64)
     }
 
     /// How good the fix is at `now`.
@@ -179,7 +171,7 @@ impl RosLink {
         let kind = self.fix.fix(now);
         let pose = self.fix.predicted(now);
         let usable = pose.as_ref().filter(|_| kind != FixKind::None);
-        let stamp = Stamp::from_unix_us(self.unix_us(now));
+        let stamp = Stamp::from_unix_us(self.clock.unix_us(now));
         let header = |frame: &str| Header {
             stamp,
             frame_id: frame.to_owned(),

@@ -419,6 +419,18 @@ async fn a_zenohd_restart_is_ridden_out() -> anyhow::Result<()> {
     router_restart(Some(&bin)).await
 }
 
+/// The ground station's database in `dir`, holding the paper's field.
+fn paper_field_database(dir: &std::path::Path) -> anyhow::Result<std::path::PathBuf> {
+    use towernav_landmark_db::{Author, LandmarkDb};
+    let path = dir.join("gs.sqlite");
+    let crew = Author {
+        by: "crew".into(),
+        at_unix_s: 0,
+    };
+    LandmarkDb::open(&path)?.upsert_all(&towernav_sim::World::paper_field().landmarks(), &crew)?;
+    Ok(path)
+}
+
 /// `towernav-edge run` as a process, its log kept.
 fn spawn_edge(args: &[&str], log: &std::path::Path) -> anyhow::Result<std::process::Child> {
     Ok(
@@ -429,14 +441,6 @@ fn spawn_edge(args: &[&str], log: &std::path::Path) -> anyhow::Result<std::proce
             .stderr(std::fs::File::create(log)?)
             .spawn()?,
     )
-}
-
-/// Poses of `uav7` on `fleet` as they arrive: (arrival, seq).
-async fn pose_listener(
-    session: &zenoh::Session,
-    fleet: &str,
-) -> anyhow::Result<(Heard, tokio::task::JoinHandle<()>)> {
-    listen_all(session, fleet).await
 }
 
 async fn wait_poses(heard: &Heard, after: Instant, n: usize) -> anyhow::Result<Vec<PoseEstimate>> {
@@ -464,15 +468,8 @@ async fn wait_poses(heard: &Heard, after: Instant, n: usize) -> anyhow::Result<V
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_edge_killed_mid_flight_starts_again_from_a_whole_or_refetched_replica()
 -> anyhow::Result<()> {
-    use towernav_landmark_db::{Author, LandmarkDb};
     let dir = tempfile::tempdir()?;
-    let db_path = dir.path().join("gs.sqlite");
-    let crew = Author {
-        by: "crew".into(),
-        at_unix_s: 0,
-    };
-    LandmarkDb::open(&db_path)?
-        .upsert_all(&towernav_sim::World::paper_field().landmarks(), &crew)?;
+    let db_path = paper_field_database(dir.path())?;
     let fleet = "killed";
     let endpoint = towernav_tests::loopback_endpoint();
     let gs = open_session(&Endpoints {
@@ -485,7 +482,7 @@ async fn an_edge_killed_mid_flight_starts_again_from_a_whole_or_refetched_replic
         NodeId::new(fleet)?,
         db_path.clone(),
     ));
-    let (heard, reader) = pose_listener(&gs, fleet).await?;
+    let (heard, reader) = listen_all(&gs, fleet).await?;
     let replica = dir.path().join("replica.json");
     let replica_arg = replica.display().to_string();
     let edge_listen = towernav_tests::loopback_endpoint();
@@ -632,15 +629,8 @@ async fn a_ground_station_restart_keeps_its_database_and_never_applies_a_correct
 -> anyhow::Result<()> {
     use towernav_ground_station::events::NetEvent;
     use towernav_ground_station::net::{self, NetCommand, NetLink};
-    use towernav_landmark_db::{Author, LandmarkDb};
     let dir = tempfile::tempdir()?;
-    let db_path = dir.path().join("gs.sqlite");
-    let crew = Author {
-        by: "crew".into(),
-        at_unix_s: 0,
-    };
-    LandmarkDb::open(&db_path)?
-        .upsert_all(&towernav_sim::World::paper_field().landmarks(), &crew)?;
+    let db_path = paper_field_database(dir.path())?;
     let fleet = NodeId::new("gsrestart")?;
     let edge_endpoint = towernav_tests::loopback_endpoint();
     let mut config = oracle("gsrestart", 600);
@@ -681,10 +671,16 @@ async fn a_ground_station_restart_keeps_its_database_and_never_applies_a_correct
     }
     let first = start_gs();
     // A bound track, then the operator pins it to its tower.
-    let seen = collect(
-        &first,
-        |e| matches!(e, NetEvent::Tracks(t) if t.tracks.iter().any(|t| t.tower_id.is_some())),
-    );
+    // Three seconds of flight heard, then a bound track.
+    let mut heard_s = 0.0;
+    let seen = collect(&first, |e| match e {
+        NetEvent::Pose(p) => {
+            heard_s = p.time_s;
+            false
+        }
+        NetEvent::Tracks(t) => heard_s >= 3.0 && t.tracks.iter().any(|t| t.tower_id.is_some()),
+        _ => false,
+    });
     let (track, tower) = seen
         .iter()
         .rev()
@@ -727,14 +723,23 @@ async fn a_ground_station_restart_keeps_its_database_and_never_applies_a_correct
         .fold(0.0, f64::max);
     drop(first); // the ground station goes away
     tokio::time::sleep(Duration::from_secs(1)).await;
-    let db = LandmarkDb::open(&db_path)?;
+    let db = towernav_landmark_db::LandmarkDb::open(&db_path)?;
     assert_eq!(db.list()?.len(), 18, "the database is whole");
 
     let second = start_gs();
-    let seen = collect(
-        &second,
-        |e| matches!(e, NetEvent::Tracks(t) if t.tracks.iter().any(|t| t.track_id == track && t.pinned)),
-    );
+    // Until the pin shows and the live poses run 2 s past what the first
+    // one heard (the history, fetched at start, has come by then).
+    let (mut pinned_seen, mut live_s) = (false, 0.0);
+    let seen = collect(&second, |e| {
+        match e {
+            NetEvent::Pose(p) => live_s = f64::max(live_s, p.time_s),
+            NetEvent::Tracks(t) => {
+                pinned_seen |= t.tracks.iter().any(|t| t.track_id == track && t.pinned)
+            }
+            _ => {}
+        }
+        pinned_seen && live_s > before_restart_s + 2.0
+    });
     let poses: Vec<&PoseEstimate> = seen
         .iter()
         .filter_map(|(_, e)| match e {

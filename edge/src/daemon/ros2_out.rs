@@ -129,12 +129,13 @@ pub fn attitude_of(q: [f32; 4]) -> Option<Attitude> {
 }
 
 pub struct OnboardBus {
-    session: Session,
+    /// Kept open for the publishers and tokens below.
+    _session: Session,
     ros2: Option<Ros2Topics>,
     px4: Option<Px4Out>,
     _node_token: LivelinessToken,
-    _attitude: Option<(Subscriber<()>, LivelinessToken)>,
-    px4_times: Option<tokio::sync::mpsc::Receiver<u64>>,
+    _attitude: (Subscriber<()>, LivelinessToken),
+    px4_times: tokio::sync::mpsc::Receiver<u64>,
     failures: u64,
 }
 
@@ -270,12 +271,12 @@ impl OnboardBus {
         tracing::info!(connect = ?ros2.connect, ros2 = ros2.enabled, px4 = px4_config.enabled, %attitude_key, "onboard Zenoh open");
         Ok(Some((
             Self {
-                session,
+                _session: session,
                 ros2: topics,
                 px4,
                 _node_token: node_token,
-                _attitude: Some((subscriber, subscription_token)),
-                px4_times: Some(times_rx),
+                _attitude: (subscriber, subscription_token),
+                px4_times: times_rx,
                 failures: 0,
             },
             Px4Attitude { latest },
@@ -283,8 +284,8 @@ impl OnboardBus {
     }
 
     /// PX4's clock readings, as its `vehicle_attitude` arrives.
-    pub fn px4_times(&mut self) -> Option<&mut tokio::sync::mpsc::Receiver<u64>> {
-        self.px4_times.as_mut()
+    pub fn px4_times(&mut self) -> &mut tokio::sync::mpsc::Receiver<u64> {
+        &mut self.px4_times
     }
 
     /// Publishes one output; a failure is counted and told once in a while.
@@ -314,10 +315,6 @@ impl OnboardBus {
                 tracing::warn!(error = %e, failures = self.failures, "onboard Zenoh publish failed");
             }
         }
-    }
-
-    pub fn session(&self) -> &Session {
-        &self.session
     }
 }
 

@@ -155,7 +155,7 @@ impl Daemon<'_> {
                 correction = node.next_correction() => Event::Correction(correction),
                 change = next_change(sync.as_deref()) => Event::Landmarks(change),
                 Some(message) = next_message(from_autopilot.as_mut()) => Event::Autopilot(message),
-                Some(t) = next_message(sinks.onboard.as_mut().and_then(OnboardBus::px4_times)) => Event::Px4Time(t),
+                Some(t) = next_message(sinks.onboard.as_mut().map(OnboardBus::px4_times)) => Event::Px4Time(t),
                 () = tokio::time::sleep_until(deadline) => Event::Timer,
             };
             match event {
