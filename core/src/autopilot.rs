@@ -310,6 +310,7 @@ mod tests {
             covariance,
             method: PoseMethod::RaysEkf,
             towers_used: vec!["A1".into()],
+            coast_s: 0.0,
         }
     }
 

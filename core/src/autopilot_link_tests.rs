@@ -45,6 +45,7 @@ fn estimate(east: f64, towers: &[&str]) -> LinkEstimate {
             covariance,
             method: PoseMethod::RaysEkf,
             towers_used: towers.iter().map(|t| t.to_string()).collect(),
+            coast_s: 0.0,
         },
         attitude: Attitude::level(0.0),
         velocity_in_world: Vector3::new(10.0, 0.0, 0.0),

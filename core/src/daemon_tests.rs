@@ -529,3 +529,62 @@ fn a_repeated_correction_is_answered_again_and_not_applied_twice() {
     assert!(acks(drain(&mut core))[0].accepted);
     assert_eq!(pinned(&seen(&mut core, 8)), Some(true));
 }
+
+#[test]
+fn through_a_gap_predicted_poses_go_out_at_the_frame_rate_marked_as_coasting() {
+    let start = Instant::now();
+    let mut core = core(start, None);
+    let pose = towernav_geometry::Pose {
+        position_in_world: Point3::new(0.0, 0.0, 20.0),
+        attitude: Attitude::level(0.0),
+    };
+    let seen = boxes_seen_from(&core, &pose);
+    assert_eq!(seen.len(), 2, "both towers in view");
+    let mut poses = Vec::new();
+    // Two seconds with both towers, then none for a minute, at 30 frames/s.
+    for seq in 0..(62 * 30u64) {
+        let at = start + Duration::from_secs_f64(seq as f64 / 30.0);
+        let mut f = frame(seq, at, start);
+        if seq < 60 {
+            f.detections = seen.clone();
+        }
+        core.handle_frame(at, f);
+        poses.extend(drain(&mut core).into_iter().filter_map(|o| match o {
+            Output::Pose { pose, state, .. } => Some((pose, state)),
+            _ => None,
+        }));
+    }
+    let (fixed, coasting): (Vec<_>, Vec<_>) = poses.iter().partition(|(p, _)| p.seq < 60);
+    assert!(fixed.len() >= 50, "{} fixes", fixed.len());
+    assert!(
+        fixed.iter().all(|(p, s)| p.coast_s == 0.0
+            && p.towers_used.len() == 2
+            && *s == EdgeState::Localized)
+    );
+    // Every frame of the gap has its pose until the covariance passes the
+    // bound, each a prediction that says so, its covariance growing.
+    assert!(coasting.len() > 30, "{} predicted poses", coasting.len());
+    assert!(
+        coasting
+            .windows(2)
+            .all(|w| w[1].0.seq == w[0].0.seq + 1 && w[1].0.coast_s > w[0].0.coast_s),
+        "one per frame, the coast growing"
+    );
+    assert!(
+        coasting
+            .iter()
+            .all(|(p, s)| p.is_coasting() && p.towers_used.is_empty() && *s == EdgeState::Coasting)
+    );
+    let variance = |p: &PoseEstimate| p.covariance[0][0] + p.covariance[1][1];
+    let (first, last) = (&coasting[0].0, &coasting[coasting.len() - 1].0);
+    assert!(
+        (first.coast_s - 1.0 / 30.0).abs() < 1e-6,
+        "{}",
+        first.coast_s
+    );
+    assert!(variance(last) > 4.0 * variance(first));
+    assert!(
+        last.seq < 61 * 30,
+        "published until the bound, not for ever"
+    );
+}

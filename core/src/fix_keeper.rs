@@ -134,6 +134,7 @@ impl FixKeeper {
         (pose.east_m, pose.north_m, pose.up_m) = (p.x, p.y, p.z);
         (pose.lat_deg, pose.lon_deg, pose.alt_m) = (lat_deg, lon_deg, height_m);
         pose.time_s += dt;
+        pose.coast_s += dt;
         // Position error after dt: the velocity's error times dt, plus the
         // white acceleration's (sigma dt^2 / 2)^2 per axis; cross terms with
         // the position's error are left out.

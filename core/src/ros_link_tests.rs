@@ -59,6 +59,7 @@ fn estimate(north: f64) -> LinkEstimate {
             covariance,
             method: PoseMethod::RaysEkf,
             towers_used: vec!["A1".into()],
+            coast_s: 0.0,
         },
         attitude: Attitude {
             roll: 0.1,

@@ -170,6 +170,7 @@ mod tests {
             ],
             method: PoseMethod::PaperLbl,
             towers_used: vec![],
+            coast_s: 0.0,
         }
     }
 

@@ -42,8 +42,11 @@ pub enum Nav {
     Unknown,
     /// Poses are coming (seconds since the last).
     Fix(f64),
-    /// No tower in the last frames: the filter predicts (seconds since the
-    /// last pose, if any).
+    /// Poses are coming, each the filter's prediction through a gap with no
+    /// tower fix: seconds since the last pose, and since the last tower fix.
+    Predicting { age: f64, coast_s: f64 },
+    /// No tower in the last frames: the filter predicts but publishes
+    /// nothing current (seconds since the last pose, if any).
     Coasting(Option<f64>),
     /// No estimate (seconds since the last pose, if any).
     NoFix(Option<f64>),
@@ -52,6 +55,12 @@ pub enum Nav {
 impl Nav {
     pub fn is_fix(self) -> bool {
         matches!(self, Nav::Fix(_))
+    }
+
+    /// Whether the last pose is where the UAV is now: a fix, or a current
+    /// prediction whose covariance says how far to trust it.
+    pub fn is_current(self) -> bool {
+        matches!(self, Nav::Fix(_) | Nav::Predicting { .. })
     }
 }
 
@@ -303,8 +312,15 @@ impl Fleet {
         let age = self.pose_age_s(uav, now_s);
         match (view.status.as_ref().map(|s| s.state), age) {
             (Some(EdgeState::NoFix | EdgeState::Initializing), a) => Nav::NoFix(a),
+            // A fresh pose says more than the status, sent once a second.
+            (_, Some(a)) if a <= STALE_AFTER_S => match &view.last_pose {
+                Some(p) if p.is_coasting() => Nav::Predicting {
+                    age: a,
+                    coast_s: p.coast_s + a,
+                },
+                _ => Nav::Fix(a),
+            },
             (Some(EdgeState::Coasting), a) => Nav::Coasting(a),
-            (_, Some(a)) if a <= STALE_AFTER_S => Nav::Fix(a),
             (_, a @ Some(_)) => Nav::NoFix(a),
             (Some(EdgeState::Localized), None) => Nav::NoFix(None),
             (None, None) => Nav::Unknown,

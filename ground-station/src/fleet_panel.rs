@@ -141,8 +141,8 @@ fn uav_header(
 }
 
 /// The link (LINK LOST, STALE: nothing heard) or, while the UAV is heard,
-/// its navigation: the fix with its pose rate, COASTING or NO FIX with the
-/// age of the last pose. Then the last position with its 1-sigma, heading
+/// its navigation: the fix with its pose rate, COASTING (on current
+/// predictions, or on none) or NO FIX with the age of the last pose. Then the last position with its 1-sigma, heading
 /// and height above the ellipsoid, and the towers used.
 fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, nav: Nav) {
     let last_pose = |age: Option<f64>| {
@@ -173,6 +173,15 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, nav: Nav) {
                 view.pose_rate_hz()
             ));
         }
+        (_, Nav::Predicting { coast_s, .. }) => {
+            ui.colored_label(
+                Color32::ORANGE,
+                format!(
+                    "COASTING: no tower fix for {coast_s:.1} s, {:.0} predicted poses/s",
+                    view.pose_rate_hz()
+                ),
+            );
+        }
         (_, Nav::Coasting(age)) => {
             ui.colored_label(
                 Color32::ORANGE,
@@ -189,8 +198,9 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, nav: Nav) {
             ui.label("no pose yet");
         }
     }
-    // A position is current only while the UAV is heard and has a fix.
-    let current = link.is_live() && nav.is_fix();
+    // A position is current only while the UAV is heard and has a fix or a
+    // current prediction.
+    let current = link.is_live() && nav.is_current();
     if let Some(p) = &view.last_pose {
         let sigma = (p.covariance[0][0] + p.covariance[1][1]).max(0.0).sqrt();
         // The pose's yaw is counter-clockwise from east; a compass heading is
@@ -210,7 +220,12 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, nav: Nav) {
             ui.weak(format!("last known: {text}"));
         }
         if !p.towers_used.is_empty() && current {
-            ui.label(format!("fix from {}", p.towers_used.join(" ")));
+            let n = p.towers_used.len();
+            let towers = if n == 1 { "tower" } else { "towers" };
+            ui.label(format!(
+                "fix from {n} {towers}: {}",
+                p.towers_used.join(" ")
+            ));
         }
     }
 }

@@ -316,8 +316,11 @@ fn draw_fleet(
         if let Some(p) = view
             .last_pose
             .as_ref()
-            .filter(|_| link.is_live() && nav.is_fix())
+            .filter(|_| link.is_live() && nav.is_current())
         {
+            // A prediction's ellipse is drawn in amber: where the UAV
+            // should be, not where towers put it.
+            let color = if nav.is_fix() { color } else { Color32::ORANGE };
             let cov = [
                 [p.covariance[0][0], p.covariance[0][1]],
                 [p.covariance[1][0], p.covariance[1][1]],
@@ -343,6 +346,10 @@ fn draw_fleet(
         let (marker, name) = match (link, nav) {
             (Link::Lost(_), _) => (Color32::RED, format!("{uav}: LINK LOST, last known")),
             (Link::Stale(_), _) => (Color32::GRAY, format!("{uav} (late)")),
+            (_, Nav::Predicting { coast_s, .. }) => (
+                Color32::ORANGE,
+                format!("{uav}: coasting {coast_s:.0} s, predicted"),
+            ),
             (_, Nav::Coasting(_)) => (Color32::ORANGE, format!("{uav}: coasting, last fix")),
             (_, Nav::NoFix(_)) => (Color32::YELLOW, format!("{uav}: NO FIX, last fix")),
             (Link::Live | Link::Waiting, _) => (color, uav.to_string()),

@@ -30,6 +30,7 @@ pub fn pose(uav: &str, lat_deg: f64, lon_deg: f64, seq: u64) -> PoseEstimate {
         ],
         method: PoseMethod::PaperLbl,
         towers_used: vec!["A1".into(), "B1".into()],
+        coast_s: 0.0,
     }
 }
 

@@ -162,6 +162,41 @@ fn a_lost_fix_is_not_a_lost_link() {
     harness.get_by_label("LINK LOST: nothing heard for 12.0 s");
 }
 
+#[test]
+fn a_predicted_pose_reads_as_coasting_and_current_not_as_a_fix() {
+    let (tx, _commands, mut harness, now) = live();
+    harness.get_by_label_contains("FIX: ");
+    harness.get_by_label("fix from 2 towers: A1 B1");
+    // Out of sight of towers, the filter keeps publishing its prediction.
+    for i in 1..=30u32 {
+        let t = f64::from(i) / 10.0;
+        now.set(t);
+        let mut p = pose(
+            "uav1",
+            30.5205,
+            114.3601 + 1e-6 * f64::from(i),
+            5 + u64::from(i),
+        );
+        p.towers_used.clear();
+        p.coast_s = t;
+        tx.send(NetEvent::Pose(p)).expect("send");
+        harness.run();
+    }
+    harness.get_by_label_contains("COASTING: no tower fix for 3.0 s");
+    assert!(harness.query_by_label_contains("FIX: ").is_none());
+    assert!(harness.query_by_label_contains("fix from").is_none());
+    // The prediction is where the UAV is now, not a last known place.
+    harness.get_by_label_contains("30.520500, 114.360130");
+    assert!(harness.query_by_label_contains("last known").is_none());
+    // A tower fix again.
+    now.set(3.1);
+    tx.send(NetEvent::Pose(pose("uav1", 30.5205, 114.3602, 40)))
+        .expect("send");
+    harness.run();
+    harness.get_by_label_contains("FIX: ");
+    assert!(harness.query_by_label_contains("COASTING").is_none());
+}
+
 /// Clicks track 7's box, picks B1 and sends it; returns what was published.
 fn send_b1(
     harness: &mut Harness<'static, GsApp>,

@@ -121,6 +121,7 @@ mod tests {
             ],
             method: PoseMethod::PaperLbl,
             towers_used: towers,
+            coast_s: 0.0,
         }
     }
 

@@ -46,8 +46,21 @@ pub struct PoseEstimate {
     /// Row-major covariance of (east, north, up, yaw) in m^2, m*rad and rad^2.
     pub covariance: [[f64; 4]; 4],
     pub method: PoseMethod,
-    /// Database ids of the towers the fix used.
+    /// Database ids of the towers the fix used; empty while coasting.
     pub towers_used: Vec<String>,
+    /// Seconds since the last tower fix the filter fused: 0 for a pose fixed
+    /// by towers in its own frame; above 0 the pose is the filter's
+    /// prediction (coasting through a gap), its covariance grown with the
+    /// time, published until it passes the edge's report bound.
+    #[serde(default)]
+    pub coast_s: f64,
+}
+
+impl PoseEstimate {
+    /// Whether this pose is a prediction, not a fix from towers in view.
+    pub fn is_coasting(&self) -> bool {
+        self.coast_s > 0.0
+    }
 }
 
 /// One tracked box.

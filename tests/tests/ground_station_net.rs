@@ -35,6 +35,7 @@ fn pose(uav: &NodeId, seq: u64) -> PoseEstimate {
         ],
         method: PoseMethod::PaperLbl,
         towers_used: vec!["A1".into()],
+        coast_s: 0.0,
     }
 }
 

@@ -20,6 +20,7 @@ use towernav_onnx::{DetectorOptions, YoloDetector};
 use towernav_sim::world::WorldParams;
 use towernav_sim::{Barometer, BarometerParams, Conditions, Scenario, World};
 
+use super::loc_gaps::{Gaps, table as gaps_table};
 use crate::edge_precision::robust_sigma;
 use crate::gnss_score::TWO_SIGMA_CHI2;
 use crate::mot_metrics::{MotAccumulator, tower_under};
@@ -92,7 +93,7 @@ pub struct FlyOptions {
 }
 
 /// One flight with one detector.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, Serialize)]
 pub struct BenchRow {
     pub world_seed: u64,
     pub detector: String,
@@ -140,6 +141,8 @@ pub struct FrameRow {
     /// Towers the oracle must see (tall enough, not hidden).
     pub in_view: usize,
     pub detections: usize,
+    /// Of the towers in view, those with a box on them (IoU 0.3).
+    pub detected: usize,
     pub tracks: usize,
     pub bound: usize,
     /// Bound tracks on the wrong tower.
@@ -147,6 +150,8 @@ pub struct FrameRow {
     pub fix: bool,
     pub fix_towers: usize,
     pub verdict: String,
+    /// The filter was running (had a state to predict) as the frame came.
+    pub filter_running: bool,
     /// Horizontal error of the published estimate, and its NEES (2 DOF).
     pub error_m: Option<f64>,
     pub nees: Option<f64>,
@@ -162,22 +167,24 @@ pub struct FrameRow {
 }
 
 impl FrameRow {
-    pub const HEADER: &str = "time_s,roll_deg,in_view,detections,tracks,bound,wrong,fix,fix_towers,verdict,error_m,nees,sigma_m,coast_s,fix_error_m,fix_nees,fix_sigma_m,fix_up_error_m,fix_up_sigma_m";
+    pub const HEADER: &str = "time_s,roll_deg,in_view,detections,detected,tracks,bound,wrong,fix,fix_towers,verdict,filter_running,error_m,nees,sigma_m,coast_s,fix_error_m,fix_nees,fix_sigma_m,fix_up_error_m,fix_up_sigma_m";
 
     fn csv(&self) -> String {
         let opt = |v: Option<f64>| v.map_or_else(String::new, |v| format!("{v:.3}"));
         format!(
-            "{:.3},{:.2},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{:.3},{:.2},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             self.time_s,
             self.roll_deg,
             self.in_view,
             self.detections,
+            self.detected,
             self.tracks,
             self.bound,
             self.wrong,
             u8::from(self.fix),
             self.fix_towers,
             self.verdict,
+            u8::from(self.filter_running),
             opt(self.error_m),
             opt(self.nees),
             opt(self.sigma_m),
@@ -296,21 +303,34 @@ pub fn fly(
         if let Some(b) = barometer.as_mut() {
             pipeline.barometric_height(frame.time_s, b.read(here.z));
         }
+        let filter_running = pipeline.predicted_position(frame.time_s).is_some();
+        let demanded: Vec<&PixelBox> = truth
+            .boxes
+            .iter()
+            .filter(|b| scenario.demanded(b))
+            .map(|b| &b.bbox)
+            .collect();
+        let detected = demanded
+            .iter()
+            .filter(|t| frame.detections.iter().any(|d| d.bbox.iou(t) >= 0.3))
+            .count();
         let out = pipeline.process(&frame);
         let mut row = FrameRow {
             time_s: frame.time_s,
             roll_deg: truth.pose.attitude.roll.to_degrees(),
-            in_view: truth.boxes.iter().filter(|b| scenario.demanded(b)).count(),
+            in_view: demanded.len(),
             detections,
+            detected,
             tracks: out.tracks.len(),
             bound: out.tracks.iter().filter(|t| t.tower.is_some()).count(),
             wrong: wrong_bindings(&out, &truth, &map),
             fix: out.fix.is_some(),
             fix_towers: out.fix.as_ref().map_or(0, |f| f.towers_used.len()),
             verdict: format!("{:?}", out.verdict),
+            filter_running,
             ..FrameRow::default()
         };
-        if truth.boxes.iter().any(|b| scenario.demanded(b)) {
+        if !demanded.is_empty() {
             let roll = truth.pose.attitude.roll.abs().to_degrees();
             let bin = if roll < 3.0 {
                 Some(&mut level)
@@ -512,9 +532,7 @@ pub fn table(rows: &[BenchRow]) -> Table {
     for r in rows {
         push(r.world_seed.to_string(), r);
     }
-    let mut detectors: Vec<&str> = rows.iter().map(|r| r.detector.as_str()).collect();
-    detectors.sort();
-    detectors.dedup();
+    let detectors = detector_names(rows);
     for name in detectors {
         push(
             "all".into(),
@@ -522,6 +540,14 @@ pub fn table(rows: &[BenchRow]) -> Table {
         );
     }
     table
+}
+
+/// The detectors of `rows`, each once.
+fn detector_names(rows: &[BenchRow]) -> Vec<&str> {
+    let mut names: Vec<&str> = rows.iter().map(|r| r.detector.as_str()).collect();
+    names.sort();
+    names.dedup();
+    names
 }
 
 /// Rows of one detector pooled, each weighted by its estimates (or frames).
@@ -608,6 +634,17 @@ pub fn write_all(options: &LocBenchOptions, out: &Path) -> anyhow::Result<()> {
         text.push('\n');
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
     }
+    let detectors = detector_names(&rows);
+    let mut gaps = Vec::new();
+    for name in detectors {
+        let of: Vec<&BenchRow> = rows.iter().filter(|r| r.detector == name).collect();
+        let g = Gaps::of(name, &of);
+        println!("{}", gaps_table(&g));
+        gaps.push(g);
+    }
+    let path = out.join("loc-gaps.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&gaps)?)
+        .with_context(|| format!("writing {}", path.display()))?;
     let path = out.join("loc-bench.json");
     std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
         .with_context(|| format!("writing {}", path.display()))?;

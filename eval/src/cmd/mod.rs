@@ -7,6 +7,7 @@ pub mod detect_photos;
 pub mod detector_eval;
 pub mod loc_bench;
 pub mod loc_eval;
+pub mod loc_gaps;
 pub mod loc_plots;
 pub mod real_eval;
 pub mod tracking_eval;
