@@ -15,7 +15,9 @@
 //! `restart_after_rejections` rejected fixes also restarts it from the newest
 //! fix: a filter that rejects everything has itself gone wrong. A restart needs
 //! a fix from two or more towers, and after a loss one within reach of the
-//! last estimate at `max_speed_mps`.
+//! last estimate at `max_speed_mps`; or one tower, where the lost state
+//! dead-reckoned to the fix (or a position another source gave) is tight
+//! enough to tell that tower from its neighbours and the fix agrees with it.
 
 use nalgebra::{Matrix3, Matrix4, Matrix6, Point3, SMatrix, Vector3, Vector6};
 
@@ -61,8 +63,17 @@ pub struct FilterParams {
     /// know the position much better than one fix does.
     pub persistent_share: f64,
     /// A (re)start needs a fix from at least this many towers: one tower's
-    /// fix cannot reveal its own wrong identity or false box.
+    /// fix cannot reveal its own wrong identity or false box. One tower may
+    /// restart the filter only against a dead-reckoned prior (see
+    /// `one_tower_prior_sigma_m`).
     pub min_restart_towers: usize,
+    /// After a loss, a fix from fewer than `min_restart_towers` towers
+    /// restarts the filter when the lost state, carried on to the fix's time
+    /// at its velocity, is still within this horizontal 1-sigma, metres, and
+    /// the fix passes `gate_chi2` against it: the prior then says which tower
+    /// it is and where, and a wrong tower (a span, 150 m or more, away) or a
+    /// false box fails the gate. 0 turns one-tower restarts off.
+    pub one_tower_prior_sigma_m: f64,
     /// After losing the pose, a restart fix must lie within this speed times
     /// the time since the last estimate (plus `restart_slack_m`) of it.
     pub max_speed_mps: f64,
@@ -97,6 +108,7 @@ impl Default for FilterParams {
             fix_covariance_scale: 3.0,
             persistent_share: 0.5,
             min_restart_towers: 2,
+            one_tower_prior_sigma_m: 25.0,
             max_speed_mps: 20.0,
             restart_slack_m: 30.0,
             report_covariance_scale: 1.0,
@@ -137,6 +149,9 @@ pub struct PoseFilter {
     rejections: u32,
     /// Time and position of the last estimate before the pose was lost.
     last_known: Option<(f64, Point3<f64>)>,
+    /// The state as the pose was lost (or a prior given), to dead-reckon a
+    /// one-tower restart against.
+    prior: Option<State>,
 }
 
 #[derive(Debug, Clone)]
@@ -158,13 +173,41 @@ impl PoseFilter {
             state: None,
             rejections: 0,
             last_known: None,
+            prior: None,
         }
     }
 
+    /// A position another source gives (the autopilot's GNSS before it is
+    /// lost) with its 1-sigma at `time_s`: while the filter is not running,
+    /// one tower may start it against this prior as after a loss. Its
+    /// velocity is unknown (`initial_velocity_sigma`), so the prior widens
+    /// past use within a second or two of the source falling silent.
+    pub fn set_prior(&mut self, time_s: f64, position_in_world: Point3<f64>, sigma_m: f64) {
+        if self.state.is_some() || !sigma_m.is_finite() || sigma_m <= 0.0 {
+            return;
+        }
+        let mut x = Vector6::zeros();
+        x.fixed_rows_mut::<3>(0)
+            .copy_from(&position_in_world.coords);
+        let mut p = Matrix6::zeros();
+        for i in 0..3 {
+            p[(i, i)] = sigma_m * sigma_m;
+            p[(i + 3, i + 3)] = self.params.initial_velocity_sigma.powi(2);
+        }
+        self.prior = Some(State {
+            time_s,
+            x,
+            p,
+            last_update_s: time_s,
+            fix_covariance: Matrix3::zeros(),
+            yaw: None,
+        });
+    }
+
     /// Whether `fix` may (re)start the filter at `time_s`.
-    fn may_start_from(&self, time_s: f64, fix: &Fix) -> bool {
+    fn may_start_from(&self, time_s: f64, fix: &Fix, imu_yaw: f64) -> bool {
         if fix.towers_used.len() < self.params.min_restart_towers {
-            return false;
+            return !fix.towers_used.is_empty() && self.prior_agrees(time_s, fix, imu_yaw);
         }
         match self.last_known {
             Some((t, p)) => {
@@ -174,6 +217,29 @@ impl PoseFilter {
             }
             None => true,
         }
+    }
+
+    /// Whether the dead-reckoned prior is tight enough to name the fix's
+    /// tower and the fix passes the gate against it.
+    fn prior_agrees(&self, time_s: f64, fix: &Fix, imu_yaw: f64) -> bool {
+        let Some(prior) = &self.prior else {
+            return false;
+        };
+        if time_s < prior.time_s {
+            return false;
+        }
+        let mut s = prior.clone();
+        s.predict(&self.params, time_s, Some(imu_yaw));
+        let p = s.p.fixed_view::<2, 2>(0, 0).into_owned();
+        if horizontal_sigma(&p) > self.params.one_tower_prior_sigma_m {
+            return false;
+        }
+        let r = fix.covariance.fixed_view::<2, 2>(0, 0).into_owned()
+            * self.params.fix_covariance_scale.max(1e-6);
+        let d = fix.position_in_world.coords.xy() - s.x.fixed_rows::<2>(0);
+        (p + r)
+            .try_inverse()
+            .is_some_and(|ci| (d.transpose() * ci * d)[(0, 0)] <= self.params.gate_chi2)
     }
 
     /// Where the filter expects the UAV at `time_s` (no state change).
@@ -223,7 +289,7 @@ impl PoseFilter {
                     Point3::from(s.x.fixed_rows::<3>(0).into_owned()),
                 )
             });
-            self.state = None;
+            self.prior = self.state.take().filter(|_| !backwards);
         }
         let verdict = match (fix, self.state.is_some()) {
             (None, _) => {
@@ -231,7 +297,7 @@ impl PoseFilter {
                 FixVerdict::NoFix
             }
             (Some(f), false) => {
-                if self.may_start_from(time_s, f) {
+                if self.may_start_from(time_s, f, imu_yaw) {
                     self.start(time_s, f, imu_yaw);
                     FixVerdict::Restarted
                 } else {
@@ -292,6 +358,7 @@ impl PoseFilter {
 
     fn start(&mut self, time_s: f64, fix: &Fix, imu_yaw: f64) {
         self.last_known = None;
+        self.prior = None;
         let mut x = Vector6::zeros();
         x.fixed_rows_mut::<3>(0)
             .copy_from(&fix.position_in_world.coords);
@@ -317,49 +384,9 @@ impl PoseFilter {
     /// Advances the state to `time_s`; `yaw` is the IMU's then, if known.
     fn predict(&mut self, time_s: f64, yaw: Option<f64>) {
         let params = self.params;
-        let Some(s) = &mut self.state else { return };
-        let yaw = yaw.filter(|y| y.is_finite());
-        // The turn since the last step, applied to the velocity at its start.
-        let turn = match (s.yaw, yaw) {
-            (Some(before), Some(now)) if params.velocity_follows_heading => {
-                Some(wrap_angle(now - before))
-            }
-            _ => None,
-        };
-        if yaw.is_some() {
-            s.yaw = yaw;
+        if let Some(s) = &mut self.state {
+            s.predict(&params, time_s, yaw);
         }
-        let dt = (time_s - s.time_s).max(0.0);
-        if dt == 0.0 && turn.is_none() {
-            return;
-        }
-        let (reach, keep) = velocity_decay(dt, params.velocity_tau_s);
-        let mut turn_v = Matrix3::identity();
-        if let Some(a) = turn {
-            let (sin, cos) = a.sin_cos();
-            turn_v[(0, 0)] = cos;
-            turn_v[(0, 1)] = -sin;
-            turn_v[(1, 0)] = sin;
-            turn_v[(1, 1)] = cos;
-        }
-        let mut f = Matrix6::identity();
-        f.fixed_view_mut::<3, 3>(0, 3).copy_from(&(turn_v * reach));
-        f.fixed_view_mut::<3, 3>(3, 3).copy_from(&(turn_v * keep));
-        let mut q = Matrix6::zeros();
-        for i in 0..3 {
-            let a2 = if i < 2 {
-                params.accel_sigma_h.powi(2)
-            } else {
-                params.accel_sigma_v.powi(2)
-            };
-            q[(i, i)] = a2 * dt.powi(3) / 3.0;
-            q[(i, i + 3)] = a2 * dt.powi(2) / 2.0;
-            q[(i + 3, i)] = a2 * dt.powi(2) / 2.0;
-            q[(i + 3, i + 3)] = a2 * dt;
-        }
-        s.x = f * s.x;
-        s.p = f * s.p * f.transpose() + q;
-        s.time_s = time_s;
     }
 
     /// Fuses a velocity measured by another source (visual-inertial
@@ -406,6 +433,53 @@ impl PoseFilter {
 }
 
 impl State {
+    /// Advances to `time_s`: the constant-velocity model, the velocity
+    /// turned with the IMU's yaw (`yaw`, if known) and decaying.
+    fn predict(&mut self, params: &FilterParams, time_s: f64, yaw: Option<f64>) {
+        let yaw = yaw.filter(|y| y.is_finite());
+        // The turn since the last step, applied to the velocity at its start.
+        let turn = match (self.yaw, yaw) {
+            (Some(before), Some(now)) if params.velocity_follows_heading => {
+                Some(wrap_angle(now - before))
+            }
+            _ => None,
+        };
+        if yaw.is_some() {
+            self.yaw = yaw;
+        }
+        let dt = (time_s - self.time_s).max(0.0);
+        if dt == 0.0 && turn.is_none() {
+            return;
+        }
+        let (reach, keep) = velocity_decay(dt, params.velocity_tau_s);
+        let mut turn_v = Matrix3::identity();
+        if let Some(a) = turn {
+            let (sin, cos) = a.sin_cos();
+            turn_v[(0, 0)] = cos;
+            turn_v[(0, 1)] = -sin;
+            turn_v[(1, 0)] = sin;
+            turn_v[(1, 1)] = cos;
+        }
+        let mut f = Matrix6::identity();
+        f.fixed_view_mut::<3, 3>(0, 3).copy_from(&(turn_v * reach));
+        f.fixed_view_mut::<3, 3>(3, 3).copy_from(&(turn_v * keep));
+        let mut q = Matrix6::zeros();
+        for i in 0..3 {
+            let a2 = if i < 2 {
+                params.accel_sigma_h.powi(2)
+            } else {
+                params.accel_sigma_v.powi(2)
+            };
+            q[(i, i)] = a2 * dt.powi(3) / 3.0;
+            q[(i, i + 3)] = a2 * dt.powi(2) / 2.0;
+            q[(i + 3, i)] = a2 * dt.powi(2) / 2.0;
+            q[(i + 3, i + 3)] = a2 * dt;
+        }
+        self.x = f * self.x;
+        self.p = f * self.p * f.transpose() + q;
+        self.time_s = time_s;
+    }
+
     /// Fuses a direct measurement `z` (covariance `r`) of the three states
     /// from `first` (0: position, 3: velocity); `false`, unchanged, if its
     /// innovation fails the chi-square `gate`.
@@ -691,8 +765,84 @@ mod tests {
         let (none, verdict) = f.step(50.6, Some(&single), 0.0, 1e-4);
         assert!(
             none.is_none() && verdict == FixVerdict::Rejected,
-            "one tower cannot restart"
+            "one tower cannot restart once the prior has grown past naming it"
         );
+    }
+
+    fn one_tower(x: f64, y: f64) -> Fix {
+        let mut fix = fix_at(x, y, 1.0);
+        fix.towers_used.truncate(1);
+        fix
+    }
+
+    #[test]
+    fn one_tower_restarts_only_where_a_tight_prior_expects_it() {
+        let params = FilterParams::default();
+        // Hovering at the origin, a flow sensor holding the velocity at
+        // zero through the gap, so the dead-reckoned prior stays tight.
+        let mut f = PoseFilter::new(params);
+        let still = Matrix3::identity() * 0.05;
+        for i in 0..=60 {
+            f.step(f64::from(i) / 30.0, Some(&fix_at(0.0, 0.0, 1.0)), 0.0, 1e-4);
+        }
+        let mut t = 2.0;
+        while t < 24.0 {
+            t += 0.1;
+            f.update_velocity(t, &Vector3::zeros(), &still);
+            f.step(t, None, 0.0, 1e-4);
+        }
+        assert!(f.predicted_position(t).is_none(), "lost after 20 s");
+        // A tower 150 m off (the next one along the line) is not it.
+        let mut wrong = f.clone();
+        assert_eq!(
+            wrong.step(24.2, Some(&one_tower(150.0, 0.0)), 0.0, 1e-4).1,
+            FixVerdict::Rejected
+        );
+        let (back, verdict) = f.step(24.2, Some(&one_tower(3.0, -2.0)), 0.0, 1e-4);
+        assert_eq!(verdict, FixVerdict::Restarted);
+        assert_eq!(back.map(|e| e.updated), Some(true));
+
+        // Without the velocity the prior has grown too wide to name a tower.
+        let mut f = PoseFilter::new(params);
+        for i in 0..=60 {
+            f.step(f64::from(i) / 30.0, Some(&fix_at(0.0, 0.0, 1.0)), 0.0, 1e-4);
+        }
+        f.step(23.0, None, 0.0, 1e-4);
+        assert_eq!(
+            f.step(24.2, Some(&one_tower(3.0, -2.0)), 0.0, 1e-4).1,
+            FixVerdict::Rejected
+        );
+        // Off, it never restarts from one tower.
+        let mut f = PoseFilter::new(FilterParams {
+            one_tower_prior_sigma_m: 0.0,
+            ..params
+        });
+        f.set_prior(0.0, Point3::new(0.0, 0.0, 30.0), 5.0);
+        assert_eq!(
+            f.step(1.0, Some(&one_tower(1.0, 0.0)), 0.0, 1e-4).1,
+            FixVerdict::Rejected
+        );
+    }
+
+    #[test]
+    fn a_given_prior_lets_one_tower_start_the_filter() {
+        let mut f = PoseFilter::new(FilterParams::default());
+        assert_eq!(
+            f.step(0.5, Some(&one_tower(1.0, 0.0)), 0.0, 1e-4).1,
+            FixVerdict::Rejected,
+            "no prior: one tower cannot start it"
+        );
+        f.set_prior(0.6, Point3::new(0.0, 0.0, 30.0), 10.0);
+        assert_eq!(
+            f.step(1.0, Some(&one_tower(80.0, 0.0)), 0.0, 1e-4).1,
+            FixVerdict::Rejected,
+            "80 m from where the prior puts it"
+        );
+        assert_eq!(
+            f.step(1.1, Some(&one_tower(4.0, 3.0)), 0.0, 1e-4).1,
+            FixVerdict::Restarted
+        );
+        assert!(f.tracking(1.1, 0.1));
     }
 
     #[test]

@@ -19,6 +19,9 @@ use crate::localizer::{
 };
 use crate::tracker::{CameraMotion, SortParams, SortTracker, TrackOutput, Tracker, TrackerInput};
 
+/// 1-sigma of a position hint (a consumer GNSS fix), metres.
+const HINT_SIGMA_M: f64 = 5.0;
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct PipelineConfig {
     pub camera: PinholeCamera,
@@ -258,8 +261,9 @@ impl Pipeline {
     }
 
     /// Where another source (the autopilot's GNSS, while it is good) puts
-    /// the UAV: the prior for identity and the start of the localizer until
-    /// the filter tracks on its own; ignored while it does.
+    /// the UAV: the prior for identity, the start of the localizer and a
+    /// prior one tower may start the filter against, until the filter tracks
+    /// on its own; ignored while it does.
     pub fn hint_position(&mut self, time_s: f64, point_in_world: Point3<f64>) {
         let tracking = self
             .filter
@@ -267,8 +271,11 @@ impl Pipeline {
             .and_then(|f| f.predicted_position(time_s))
             .is_some();
         if !tracking {
-            self.last_known =
-                Some(point_in_world + self.lever_arm_in_world(self.prev_attitude.as_ref()));
+            let camera = point_in_world + self.lever_arm_in_world(self.prev_attitude.as_ref());
+            self.last_known = Some(camera);
+            if let Some(f) = &mut self.filter {
+                f.set_prior(time_s, camera, HINT_SIGMA_M);
+            }
         }
     }
 
