@@ -15,7 +15,7 @@ use serde::Serialize;
 use towernav_core::landmarks::LandmarkMap;
 use towernav_core::localizer::Method;
 use towernav_core::pipeline::{Pipeline, PipelineConfig};
-use towernav_geometry::PixelBox;
+use towernav_geometry::{Cut, EDGE_MARGIN_PX, PixelBox};
 use towernav_onnx::{DetectorOptions, YoloDetector};
 use towernav_sim::world::WorldParams;
 use towernav_sim::{Barometer, BarometerParams, Conditions, Scenario, World};
@@ -145,6 +145,12 @@ pub struct FrameRow {
     pub detected: usize,
     pub tracks: usize,
     pub bound: usize,
+    /// Bound boxes the frame cuts so that fewer than two of their centre
+    /// column, top and foot rows are left: too little for a one-tower fix.
+    pub bound_cut: usize,
+    /// Tracks whose binding stands but whose box was left out of this frame
+    /// (it fits a neighbouring tower about as well).
+    pub held: usize,
     /// Bound tracks on the wrong tower.
     pub wrong: usize,
     pub fix: bool,
@@ -167,12 +173,12 @@ pub struct FrameRow {
 }
 
 impl FrameRow {
-    pub const HEADER: &str = "time_s,roll_deg,in_view,detections,detected,tracks,bound,wrong,fix,fix_towers,verdict,filter_running,error_m,nees,sigma_m,coast_s,fix_error_m,fix_nees,fix_sigma_m,fix_up_error_m,fix_up_sigma_m";
+    pub const HEADER: &str = "time_s,roll_deg,in_view,detections,detected,tracks,bound,bound_cut,held,wrong,fix,fix_towers,verdict,filter_running,error_m,nees,sigma_m,coast_s,fix_error_m,fix_nees,fix_sigma_m,fix_up_error_m,fix_up_sigma_m";
 
     fn csv(&self) -> String {
         let opt = |v: Option<f64>| v.map_or_else(String::new, |v| format!("{v:.3}"));
         format!(
-            "{:.3},{:.2},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{:.3},{:.2},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             self.time_s,
             self.roll_deg,
             self.in_view,
@@ -180,6 +186,8 @@ impl FrameRow {
             self.detected,
             self.tracks,
             self.bound,
+            self.bound_cut,
+            self.held,
             self.wrong,
             u8::from(self.fix),
             self.fix_towers,
@@ -323,6 +331,16 @@ pub fn fly(
             detected,
             tracks: out.tracks.len(),
             bound: out.tracks.iter().filter(|t| t.tower.is_some()).count(),
+            bound_cut: out
+                .tracks
+                .iter()
+                .filter(|t| t.tower.is_some() && too_cut(&t.bbox, &pipeline))
+                .count(),
+            held: out
+                .tracks
+                .iter()
+                .filter(|t| t.tower.is_none() && t.held.is_some())
+                .count(),
             wrong: wrong_bindings(&out, &truth, &map),
             fix: out.fix.is_some(),
             fix_towers: out.fix.as_ref().map_or(0, |f| f.towers_used.len()),
@@ -413,6 +431,15 @@ fn horizontal_error(
     let c = covariance.fixed_view::<2, 2>(0, 0).into_owned();
     let nees = c.try_inverse().map(|ci| (d.transpose() * ci * d)[(0, 0)]);
     (d.norm(), nees, towernav_core::filter::horizontal_sigma(&c))
+}
+
+/// Whether the frame cuts `bbox` (in the real image) so that fewer than two
+/// of its centre column, top and foot rows are usable, by the localizer's rule.
+fn too_cut(bbox: &PixelBox, pipeline: &Pipeline) -> bool {
+    let config = pipeline.config();
+    let margin = EDGE_MARGIN_PX.max(config.localizer.cut_margin_share * bbox.height());
+    let cut = Cut::in_frame_within(bbox, &config.camera.intrinsics, margin);
+    usize::from(!cut.side()) + usize::from(!cut.top) + usize::from(!cut.bottom) < 2
 }
 
 /// Bound tracks whose box lies on another tower than their own.

@@ -21,8 +21,15 @@ pub enum Outcome {
     NotRestarted,
     /// The filter was running and gated the fix out.
     Gated,
-    /// Boxes were bound, but the localizer made no fix of them.
+    /// Boxes were bound, but the frame cut each so that too little of the
+    /// tower was left for a fix.
+    CutByTheBorder,
+    /// Boxes were bound, but the localizer made no fix of them (too
+    /// uncertain, or gated out).
     NoFixFromBoxes,
+    /// A track's binding stands, but its box fit a neighbour about as well
+    /// and was left out of the frame.
+    LeftOut,
     /// Tracks, none bound to a tower (identity waits on an ambiguity).
     NotBound,
     /// A tower was detected, but no track was confirmed yet.
@@ -32,12 +39,14 @@ pub enum Outcome {
 }
 
 impl Outcome {
-    pub const ALL: [Outcome; 8] = [
+    pub const ALL: [Outcome; 10] = [
         Outcome::Published,
         Outcome::HeldBack,
         Outcome::NotRestarted,
         Outcome::Gated,
+        Outcome::CutByTheBorder,
         Outcome::NoFixFromBoxes,
+        Outcome::LeftOut,
         Outcome::NotBound,
         Outcome::NotTracked,
         Outcome::NotDetected,
@@ -49,8 +58,10 @@ impl Outcome {
             Outcome::HeldBack => "fix fused, held back (sigma past the bound)",
             Outcome::NotRestarted => "fix refused: filter not running, restart rule",
             Outcome::Gated => "fix refused: gated by the running filter",
+            Outcome::CutByTheBorder => "bound, cut by the border: too little left",
             Outcome::NoFixFromBoxes => "bound, no fix from the boxes",
-            Outcome::NotBound => "tracked, none bound",
+            Outcome::LeftOut => "bound, box left out (fits a neighbour)",
+            Outcome::NotBound => "tracked, none bound yet",
             Outcome::NotTracked => "detected, no confirmed track",
             Outcome::NotDetected => "no box on a tower in view",
         }
@@ -68,8 +79,12 @@ impl Outcome {
                 _ if f.filter_running => Outcome::Gated,
                 _ => Outcome::NotRestarted,
             }
+        } else if f.bound > 0 && f.bound_cut == f.bound {
+            Outcome::CutByTheBorder
         } else if f.bound > 0 {
             Outcome::NoFixFromBoxes
+        } else if f.held > 0 {
+            Outcome::LeftOut
         } else if f.tracks > 0 {
             Outcome::NotBound
         } else if f.detected > 0 {
@@ -85,8 +100,8 @@ impl Outcome {
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct Gaps {
     pub detector: String,
-    pub level: [usize; 8],
-    pub banked: [usize; 8],
+    pub level: [usize; 10],
+    pub banked: [usize; 10],
     /// Of the frames with a tower in view, those with a bound box and one
     /// tower only: what a one-tower fix can reach.
     pub one_tower_bound: usize,
@@ -126,7 +141,7 @@ pub fn table(gaps: &Gaps) -> Table {
         "level".into(),
         "banked".into(),
     ]);
-    let share = |counts: &[usize; 8], i: usize| {
+    let share = |counts: &[usize; 10], i: usize| {
         let n: usize = counts.iter().sum();
         format!(
             "{:.1} % ({})",
@@ -165,8 +180,12 @@ mod tests {
         assert_eq!(Outcome::of(&f), Some(Outcome::NotTracked));
         f.tracks = 1;
         assert_eq!(Outcome::of(&f), Some(Outcome::NotBound));
+        f.held = 1;
+        assert_eq!(Outcome::of(&f), Some(Outcome::LeftOut));
         f.bound = 1;
         assert_eq!(Outcome::of(&f), Some(Outcome::NoFixFromBoxes));
+        f.bound_cut = 1;
+        assert_eq!(Outcome::of(&f), Some(Outcome::CutByTheBorder));
         f.fix = true;
         f.verdict = "Rejected".into();
         assert_eq!(Outcome::of(&f), Some(Outcome::NotRestarted));
@@ -192,8 +211,8 @@ mod tests {
             ..BenchRow::default()
         };
         let gaps = Gaps::of("oracle", &[&row]);
-        assert_eq!(gaps.level, [0, 0, 0, 0, 0, 0, 0, 1]);
-        assert_eq!(gaps.banked, [0, 0, 0, 0, 1, 0, 0, 0]);
+        assert_eq!(gaps.level, [0, 0, 0, 0, 0, 0, 0, 0, 0, 1]);
+        assert_eq!(gaps.banked, [0, 0, 0, 0, 0, 1, 0, 0, 0, 0]);
         assert_eq!(gaps.one_tower_bound, 1);
         let text = table(&gaps).to_string();
         assert!(text.contains("100.0 % (1)"), "{text}");
