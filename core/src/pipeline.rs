@@ -240,6 +240,14 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Whether the filter runs at `time_s`: it has a state it fused a fix
+    /// into within its coast limit (reporting or not).
+    pub fn filter_running(&self, time_s: f64) -> bool {
+        self.filter
+            .as_ref()
+            .is_some_and(|f| f.predicted_position(time_s).is_some())
+    }
+
     /// Where the UAV is expected at `time_s`: the filter's prediction, else
     /// the newest position known (an estimate, or a hint).
     pub fn predicted_position(&self, time_s: f64) -> Option<Point3<f64>> {

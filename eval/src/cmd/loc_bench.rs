@@ -311,7 +311,7 @@ pub fn fly(
         if let Some(b) = barometer.as_mut() {
             pipeline.barometric_height(frame.time_s, b.read(here.z));
         }
-        let filter_running = pipeline.predicted_position(frame.time_s).is_some();
+        let filter_running = pipeline.filter_running(frame.time_s);
         let demanded: Vec<&PixelBox> = truth
             .boxes
             .iter()

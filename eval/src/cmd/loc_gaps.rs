@@ -30,8 +30,12 @@ pub enum Outcome {
     /// A track's binding stands, but its box fit a neighbour about as well
     /// and was left out of the frame.
     LeftOut,
-    /// Tracks, none bound to a tower (identity waits on an ambiguity).
+    /// Tracks, none bound to a tower (identity waits on an ambiguity),
+    /// while the filter runs.
     NotBound,
+    /// Tracks, none bound, the filter lost (20 s or more without a fix):
+    /// the guess they are judged by is where the UAV was last known.
+    NotBoundLost,
     /// A tower was detected, but no track was confirmed yet.
     NotTracked,
     /// No box on any tower in view.
@@ -39,7 +43,7 @@ pub enum Outcome {
 }
 
 impl Outcome {
-    pub const ALL: [Outcome; 10] = [
+    pub const ALL: [Outcome; 11] = [
         Outcome::Published,
         Outcome::HeldBack,
         Outcome::NotRestarted,
@@ -48,6 +52,7 @@ impl Outcome {
         Outcome::NoFixFromBoxes,
         Outcome::LeftOut,
         Outcome::NotBound,
+        Outcome::NotBoundLost,
         Outcome::NotTracked,
         Outcome::NotDetected,
     ];
@@ -62,6 +67,7 @@ impl Outcome {
             Outcome::NoFixFromBoxes => "bound, no fix from the boxes",
             Outcome::LeftOut => "bound, box left out (fits a neighbour)",
             Outcome::NotBound => "tracked, none bound yet",
+            Outcome::NotBoundLost => "tracked, none bound, filter lost",
             Outcome::NotTracked => "detected, no confirmed track",
             Outcome::NotDetected => "no box on a tower in view",
         }
@@ -85,8 +91,10 @@ impl Outcome {
             Outcome::NoFixFromBoxes
         } else if f.held > 0 {
             Outcome::LeftOut
-        } else if f.tracks > 0 {
+        } else if f.tracks > 0 && f.filter_running {
             Outcome::NotBound
+        } else if f.tracks > 0 {
+            Outcome::NotBoundLost
         } else if f.detected > 0 {
             Outcome::NotTracked
         } else {
@@ -100,8 +108,8 @@ impl Outcome {
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct Gaps {
     pub detector: String,
-    pub level: [usize; 10],
-    pub banked: [usize; 10],
+    pub level: [usize; 11],
+    pub banked: [usize; 11],
     /// Of the frames with a tower in view, those with a bound box and one
     /// tower only: what a one-tower fix can reach.
     pub one_tower_bound: usize,
@@ -141,7 +149,7 @@ pub fn table(gaps: &Gaps) -> Table {
         "level".into(),
         "banked".into(),
     ]);
-    let share = |counts: &[usize; 10], i: usize| {
+    let share = |counts: &[usize; 11], i: usize| {
         let n: usize = counts.iter().sum();
         format!(
             "{:.1} % ({})",
@@ -179,6 +187,8 @@ mod tests {
         f.detected = 1;
         assert_eq!(Outcome::of(&f), Some(Outcome::NotTracked));
         f.tracks = 1;
+        assert_eq!(Outcome::of(&f), Some(Outcome::NotBoundLost));
+        f.filter_running = true;
         assert_eq!(Outcome::of(&f), Some(Outcome::NotBound));
         f.held = 1;
         assert_eq!(Outcome::of(&f), Some(Outcome::LeftOut));
@@ -188,6 +198,7 @@ mod tests {
         assert_eq!(Outcome::of(&f), Some(Outcome::CutByTheBorder));
         f.fix = true;
         f.verdict = "Rejected".into();
+        f.filter_running = false;
         assert_eq!(Outcome::of(&f), Some(Outcome::NotRestarted));
         f.filter_running = true;
         assert_eq!(Outcome::of(&f), Some(Outcome::Gated));
@@ -211,8 +222,8 @@ mod tests {
             ..BenchRow::default()
         };
         let gaps = Gaps::of("oracle", &[&row]);
-        assert_eq!(gaps.level, [0, 0, 0, 0, 0, 0, 0, 0, 0, 1]);
-        assert_eq!(gaps.banked, [0, 0, 0, 0, 0, 1, 0, 0, 0, 0]);
+        assert_eq!(gaps.level, [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1]);
+        assert_eq!(gaps.banked, [0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0]);
         assert_eq!(gaps.one_tower_bound, 1);
         let text = table(&gaps).to_string();
         assert!(text.contains("100.0 % (1)"), "{text}");
