@@ -59,6 +59,13 @@ pub struct IdentityParams {
     /// trusted guess, a bound track's box within this much of a neighbour is
     /// left out of the frame.
     pub ambiguity_margin: f64,
+    /// Added to the normalised distance of a tower whose type is not the
+    /// one the detector named: the type is evidence, not a rule. A learned
+    /// type classifier misnames towers it sees small, blurred or banked, and
+    /// a box that sits on a tower's predicted place to a fraction of its
+    /// spread is that tower whatever it was called; among towers that fit
+    /// about as well, the named type decides.
+    pub type_mismatch_cost: f64,
 }
 
 impl Default for IdentityParams {
@@ -73,6 +80,7 @@ impl Default for IdentityParams {
             release_after: 10,
             switch_margin: 0.5,
             ambiguity_margin: 0.5,
+            type_mismatch_cost: 1.5,
         }
     }
 }
@@ -253,6 +261,26 @@ impl Identity {
         Some((bearing * bearing + size * size + row * row).sqrt())
     }
 
+    /// [`Self::distance`] to `tower`, plus `type_mismatch_cost` when the
+    /// detector named another type.
+    fn fit(
+        &self,
+        track: &TrackOutput,
+        tower: usize,
+        predicted: Prediction,
+        map: &LandmarkMap,
+        image: (f64, f64),
+        trusted: bool,
+    ) -> Option<f64> {
+        let d = self.distance(track, predicted, image, trusted)?;
+        let named = map.towers.get(tower)?.tower_type == track.tower_type;
+        Some(if named {
+            d
+        } else {
+            d + self.params.type_mismatch_cost
+        })
+    }
+
     /// Binds this frame's tracks; returns each track's tower index, in order.
     /// `candidates` (towers near the pose guess) is asked at most once, and only when a
     /// track is unbound or the guess is trusted enough to check bindings.
@@ -355,10 +383,10 @@ impl Identity {
                 let track = open[r];
                 let (tower, predicted) = towers[c];
                 let own = self.bindings.get(&track.track_id) == Some(&tower);
-                let Some(pred) = comparable(track, tower, predicted, map) else {
+                let Some(pred) = upright(predicted) else {
                     return 0.0;
                 };
-                match (self.distance(track, pred, image, true), own) {
+                match (self.fit(track, tower, pred, map, image, true), own) {
                     // A box with no evidence keeps its tower, unless a track
                     // with evidence claims it.
                     (None, true) => KEEP,
@@ -380,8 +408,7 @@ impl Identity {
         // nearest other one.
         let fits = |track: &TrackOutput, own: usize| -> Option<(f64, f64)> {
             let fit = |&(tower, predicted): &(usize, Option<Prediction>)| {
-                let pred = comparable(track, tower, predicted, map)?;
-                self.distance(track, pred, image, true)
+                self.fit(track, tower, upright(predicted)?, map, image, true)
             };
             let mine = towers.iter().find(|(i, _)| *i == own).and_then(fit)?;
             let other = towers
@@ -470,8 +497,7 @@ impl Identity {
                 .filter(|(i, _)| !taken.contains(i))
                 .collect();
             let fit = |track: &TrackOutput, (tower, predicted): (usize, Option<Prediction>)| {
-                let pred = comparable(track, tower, predicted, map)?;
-                self.distance(track, pred, image, guess_trusted)
+                self.fit(track, tower, upright(predicted)?, map, image, guess_trusted)
             };
             let distance = |r: usize, c: usize| fit(unbound[r], free[c]);
             let matches = max_score_matching(
@@ -518,15 +544,10 @@ fn visible_side_offset(b: &PixelBox, cut: Cut, predicted: Prediction) -> f64 {
     }
 }
 
-/// A tower's prediction when the track could be it: the tower is of the
-/// track's type and stands upright in front of the camera.
-fn comparable(
-    track: &TrackOutput,
-    tower: usize,
-    predicted: Option<Prediction>,
-    map: &LandmarkMap,
-) -> Option<Prediction> {
-    predicted.filter(|p| map.towers[tower].tower_type == track.tower_type && p.height > 0.0)
+/// A tower's prediction when a box could be it: it stands upright in front
+/// of the camera.
+fn upright(predicted: Option<Prediction>) -> Option<Prediction> {
+    predicted.filter(|p| p.height > 0.0)
 }
 
 #[cfg(test)]
@@ -615,6 +636,44 @@ mod tests {
             || vec![0, 1, 2],
         );
         assert_eq!(bound, [Some(1), Some(0), Some(2)]);
+    }
+
+    #[test]
+    fn a_misnamed_type_is_evidence_not_a_rule() {
+        let camera = PinholeCamera::default_hd();
+        let pose = pose_at_20m();
+        // A1 (type A) stands alone ahead; the classifier calls its box D.
+        let map = map_of(&[("A1", 150.0, 0.0), ("A2", 150.0, 120.0)]);
+        let mut misnamed = observe(&pose, &camera, &map, 0, 7);
+        misnamed.tower_type = TowerType::D;
+        let mut identity = Identity::new(IdentityParams::default());
+        let bound = identity.update(
+            &[misnamed.clone()],
+            &[7],
+            view(&pose, &camera, &map, true),
+            || vec![0, 1],
+        );
+        assert_eq!(bound, [Some(0)], "on A1's place, it is A1");
+
+        // Two towers about as far from the box, one of the named type: that
+        // one. A1 (type A) and B1 (type B) side by side, 3 m apart.
+        let mut map = map_of(&[("A1", 150.0, 0.0), ("B1", 150.0, 3.0)]);
+        map.towers[1].tower_type = TowerType::B;
+        let mut between = observe(&pose, &camera, &map, 0, 8);
+        let shift = 0.5 * (observe(&pose, &camera, &map, 1, 8).bbox.center_x()
+            - between.bbox.center_x());
+        between.bbox = PixelBox::new(
+            between.bbox.left + shift,
+            between.bbox.top,
+            between.bbox.right + shift,
+            between.bbox.bottom,
+        );
+        between.tower_type = TowerType::B;
+        let mut identity = Identity::new(IdentityParams::default());
+        let bound = identity.update(&[between], &[8], view(&pose, &camera, &map, false), || {
+            vec![0, 1]
+        });
+        assert_eq!(bound, [Some(1)], "the named type decides a tie");
     }
 
     /// The view from 20 m up, level, looking along +x.
@@ -817,8 +876,8 @@ mod tests {
         let first = [observe(&pose, &camera, &map, 2, 9)];
         assert_eq!(identity.update(&first, &[9], rough, towers), [Some(2)]);
         let both = [first[0].clone(), observe(&pose, &camera, &map, 2, 10)];
-        let b2 = comparable(&both[1], 3, Some(predicted(&pose, &camera, &map, 3)), &map)
-            .and_then(|p| identity.distance(&both[1], p, (1280.0, 720.0), false))
+        let b2 = upright(Some(predicted(&pose, &camera, &map, 3)))
+            .and_then(|p| identity.fit(&both[1], 3, p, &map, (1280.0, 720.0), false))
             .expect("B2 is in view");
         assert!(
             b2 < IdentityParams::default().gate,

@@ -125,6 +125,10 @@ pub enum EvalCommand {
         /// daemon's, `pipeline.max_report_sigma_m`).
         #[arg(long)]
         max_report_sigma: Option<f64>,
+        /// How long the filter predicts without a fix before it is lost,
+        /// seconds, in both runs (default: the filter's, 20 s).
+        #[arg(long)]
+        max_coast_s: Option<f64>,
         /// Also fuse a velocity each frame, as a VIO or optical-flow
         /// estimator would send it: the truth's plus noise of this 1-sigma
         /// per axis, m/s.
@@ -171,6 +175,7 @@ impl EvalCommand {
                 cut_sigma_scale,
                 covariance_scale,
                 max_report_sigma,
+                max_coast_s,
                 velocity_sigma,
                 no_barometer,
                 method,
@@ -202,6 +207,7 @@ impl EvalCommand {
                                 .max_report_sigma_m,
                         ),
                     ),
+                    max_coast_s: *max_coast_s,
                     velocity_sigma_mps: *velocity_sigma,
                     no_barometer: *no_barometer,
                     method,

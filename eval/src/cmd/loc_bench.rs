@@ -52,6 +52,9 @@ pub struct LocBenchOptions {
     /// The filter publishes an estimate only while its horizontal 1-sigma
     /// is within this, metres, in both runs (`None`: the filter's default).
     pub max_report_sigma_m: Option<f64>,
+    /// How long the filter predicts without a fix before it is lost,
+    /// seconds, in both runs (`None`: the filter's default).
+    pub max_coast_s: Option<f64>,
     /// Also fuse a velocity, as a VIO or optical-flow estimator would give
     /// it: the truth's plus white noise of this 1-sigma per axis, m/s.
     pub velocity_sigma_mps: Option<f64>,
@@ -82,6 +85,9 @@ pub struct FlyOptions {
     /// The filter's bound on a published estimate's horizontal 1-sigma,
     /// metres (`None`: the filter's default).
     pub max_report_sigma_m: Option<f64>,
+    /// How long the filter predicts without a fix before it is lost, seconds
+    /// (`None`: the filter's default).
+    pub max_coast_s: Option<f64>,
     /// A simulated outside velocity's 1-sigma per axis, m/s (`None`: none).
     pub velocity_sigma_mps: Option<f64>,
     /// A simulated barometer; `None`: none.
@@ -243,6 +249,9 @@ pub fn fly(
     }
     if let (Some(sigma), Some(filter)) = (options.max_report_sigma_m, config.filter.as_mut()) {
         filter.max_report_sigma_m = sigma;
+    }
+    if let (Some(coast), Some(filter)) = (options.max_coast_s, config.filter.as_mut()) {
+        filter.max_coast_s = coast;
     }
     if let (Some(scale), Some(filter)) = (options.covariance_scale, config.filter.as_mut()) {
         filter.report_covariance_scale = scale;
@@ -487,6 +496,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
             cut_sigma_scale: None,
             covariance_scale: None,
             max_report_sigma_m: options.max_report_sigma_m,
+            max_coast_s: options.max_coast_s,
             velocity_sigma_mps: options.velocity_sigma_mps,
             barometer,
             method: options.method,
@@ -506,6 +516,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
                 cut_sigma_scale: options.cut_sigma_scale,
                 covariance_scale: options.covariance_scale,
                 max_report_sigma_m: options.max_report_sigma_m,
+            max_coast_s: options.max_coast_s,
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
                 method: options.method,
