@@ -59,12 +59,14 @@ pub struct IdentityParams {
     /// trusted guess, a bound track's box within this much of a neighbour is
     /// left out of the frame.
     pub ambiguity_margin: f64,
-    /// Added to the normalised distance of a tower whose type is not the
-    /// one the detector named: the type is evidence, not a rule. A learned
-    /// type classifier misnames towers it sees small, blurred or banked, and
-    /// a box that sits on a tower's predicted place to a fraction of its
-    /// spread is that tower whatever it was called; among towers that fit
-    /// about as well, the named type decides.
+    /// With a trusted guess, added to the normalised distance of a tower
+    /// whose type is not the one the detector named: the type is evidence,
+    /// not a rule. A learned type classifier misnames towers it sees small,
+    /// blurred or banked, and a box that sits on a tower's predicted place
+    /// to a fraction of the tight spread is that tower whatever it was
+    /// called; among towers that fit about as well, the named type decides.
+    /// With a rough guess the type stays a rule: geometry alone cannot
+    /// outvote it then.
     pub type_mismatch_cost: f64,
 }
 
@@ -80,7 +82,7 @@ impl Default for IdentityParams {
             release_after: 10,
             switch_margin: 0.5,
             ambiguity_margin: 0.5,
-            type_mismatch_cost: 1.5,
+            type_mismatch_cost: 2.0,
         }
     }
 }
@@ -262,7 +264,8 @@ impl Identity {
     }
 
     /// [`Self::distance`] to `tower`, plus `type_mismatch_cost` when the
-    /// detector named another type.
+    /// detector named another type and the guess is trusted; none when it
+    /// named another type and the guess is rough.
     fn fit(
         &self,
         track: &TrackOutput,
@@ -272,8 +275,11 @@ impl Identity {
         image: (f64, f64),
         trusted: bool,
     ) -> Option<f64> {
-        let d = self.distance(track, predicted, image, trusted)?;
         let named = map.towers.get(tower)?.tower_type == track.tower_type;
+        if !named && !trusted {
+            return None;
+        }
+        let d = self.distance(track, predicted, image, trusted)?;
         Some(if named {
             d
         } else {
@@ -654,14 +660,19 @@ mod tests {
             || vec![0, 1],
         );
         assert_eq!(bound, [Some(0)], "on A1's place, it is A1");
+        let mut rough = Identity::new(IdentityParams::default());
+        let bound = rough.update(&[misnamed], &[7], view(&pose, &camera, &map, false), || {
+            vec![0, 1]
+        });
+        assert_eq!(bound, [None], "a rough guess does not outvote the type");
 
         // Two towers about as far from the box, one of the named type: that
         // one. A1 (type A) and B1 (type B) side by side, 3 m apart.
         let mut map = map_of(&[("A1", 150.0, 0.0), ("B1", 150.0, 3.0)]);
         map.towers[1].tower_type = TowerType::B;
         let mut between = observe(&pose, &camera, &map, 0, 8);
-        let shift = 0.5 * (observe(&pose, &camera, &map, 1, 8).bbox.center_x()
-            - between.bbox.center_x());
+        let shift =
+            0.5 * (observe(&pose, &camera, &map, 1, 8).bbox.center_x() - between.bbox.center_x());
         between.bbox = PixelBox::new(
             between.bbox.left + shift,
             between.bbox.top,
@@ -670,7 +681,7 @@ mod tests {
         );
         between.tower_type = TowerType::B;
         let mut identity = Identity::new(IdentityParams::default());
-        let bound = identity.update(&[between], &[8], view(&pose, &camera, &map, false), || {
+        let bound = identity.update(&[between], &[8], view(&pose, &camera, &map, true), || {
             vec![0, 1]
         });
         assert_eq!(bound, [Some(1)], "the named type decides a tie");

@@ -516,7 +516,7 @@ pub fn bench(options: &LocBenchOptions) -> anyhow::Result<Vec<BenchRow>> {
                 cut_sigma_scale: options.cut_sigma_scale,
                 covariance_scale: options.covariance_scale,
                 max_report_sigma_m: options.max_report_sigma_m,
-            max_coast_s: options.max_coast_s,
+                max_coast_s: options.max_coast_s,
                 velocity_sigma_mps: options.velocity_sigma_mps,
                 barometer,
                 method: options.method,
