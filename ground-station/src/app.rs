@@ -768,7 +768,7 @@ mod tests {
         harness.get_by_label("latency p50 3 ms, p99 9 ms");
         harness.get_by_label("degraded");
         harness.get_by_label("4 dropped, 0 failed frames; oracle");
-        harness.get_by_label("fix from A1 B1");
+        harness.get_by_label("fix from 2 towers: A1 B1");
         assert!(harness.query_by_label_contains("STALE").is_none());
         assert_eq!(
             harness.state().selected.as_ref().map(NodeId::as_str),
