@@ -25,6 +25,9 @@ use towernav_geometry::frames::wrap_angle;
 
 use crate::localizer::Fix;
 
+/// Chi-square gate on a horizontal (2-D) innovation, 99.9 %.
+const HORIZONTAL_GATE_CHI2: f64 = 13.82;
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FilterParams {
     /// White acceleration noise, m/s^2 per axis horizontally and vertically.
@@ -70,7 +73,8 @@ pub struct FilterParams {
     /// After a loss, a fix from fewer than `min_restart_towers` towers
     /// restarts the filter when the lost state, carried on to the fix's time
     /// at its velocity, is still within this horizontal 1-sigma, metres, and
-    /// the fix passes `gate_chi2` against it: the prior then says which tower
+    /// the fix's horizontal position passes the chi-square gate (99.9 %, two
+    /// degrees of freedom) against it: the prior then says which tower
     /// it is and where, and a wrong tower (a span, 150 m or more, away) or a
     /// false box fails the gate. 0 turns one-tower restarts off.
     pub one_tower_prior_sigma_m: f64,
@@ -239,7 +243,7 @@ impl PoseFilter {
         let d = fix.position_in_world.coords.xy() - s.x.fixed_rows::<2>(0);
         (p + r)
             .try_inverse()
-            .is_some_and(|ci| (d.transpose() * ci * d)[(0, 0)] <= self.params.gate_chi2)
+            .is_some_and(|ci| (d.transpose() * ci * d)[(0, 0)] <= HORIZONTAL_GATE_CHI2)
     }
 
     /// Where the filter expects the UAV at `time_s` (no state change).
