@@ -151,11 +151,26 @@ pub struct PoseFilter {
     params: FilterParams,
     state: Option<State>,
     rejections: u32,
-    /// Time and position of the last estimate before the pose was lost.
-    last_known: Option<(f64, Point3<f64>)>,
-    /// The state as the pose was lost (or a prior given), to dead-reckon a
-    /// one-tower restart against.
-    prior: Option<State>,
+    /// What a restart is judged against while the filter is not running.
+    prior: Option<Prior>,
+}
+
+/// The state a restart is judged against.
+#[derive(Debug, Clone)]
+enum Prior {
+    /// The state as the pose was lost: a restart must lie within reach of
+    /// it, and one tower must agree with it dead-reckoned.
+    Lost(State),
+    /// A position another source gave: one tower must agree with it.
+    Given(State),
+}
+
+impl Prior {
+    fn state(&self) -> &State {
+        match self {
+            Prior::Lost(s) | Prior::Given(s) => s,
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -176,7 +191,6 @@ impl PoseFilter {
             params,
             state: None,
             rejections: 0,
-            last_known: None,
             prior: None,
         }
     }
@@ -198,14 +212,14 @@ impl PoseFilter {
             p[(i, i)] = sigma_m * sigma_m;
             p[(i + 3, i + 3)] = self.params.initial_velocity_sigma.powi(2);
         }
-        self.prior = Some(State {
+        self.prior = Some(Prior::Given(State {
             time_s,
             x,
             p,
             last_update_s: time_s,
             fix_covariance: Matrix3::zeros(),
             yaw: None,
-        });
+        }));
     }
 
     /// Whether `fix` may (re)start the filter at `time_s`.
@@ -213,20 +227,22 @@ impl PoseFilter {
         if fix.towers_used.len() < self.params.min_restart_towers {
             return !fix.towers_used.is_empty() && self.prior_agrees(time_s, fix, imu_yaw);
         }
-        match self.last_known {
-            Some((t, p)) => {
-                let reach =
-                    self.params.max_speed_mps * (time_s - t).abs() + self.params.restart_slack_m;
-                (fix.position_in_world - p).norm() <= reach
+        match &self.prior {
+            Some(Prior::Lost(s)) => {
+                // The last estimate: the state's position, as of its last fix.
+                let last = Point3::from(s.x.fixed_rows::<3>(0).into_owned());
+                let reach = self.params.max_speed_mps * (time_s - s.last_update_s).abs()
+                    + self.params.restart_slack_m;
+                (fix.position_in_world - last).norm() <= reach
             }
-            None => true,
+            _ => true,
         }
     }
 
     /// Whether the dead-reckoned prior is tight enough to name the fix's
     /// tower and the fix passes the gate against it.
     fn prior_agrees(&self, time_s: f64, fix: &Fix, imu_yaw: f64) -> bool {
-        let Some(prior) = &self.prior else {
+        let Some(prior) = self.prior.as_ref().map(Prior::state) else {
             return false;
         };
         if time_s < prior.time_s {
@@ -287,13 +303,7 @@ impl PoseFilter {
         {
             // Lost, or time ran backwards (a new flight): start over.
             let backwards = time_s < s.time_s;
-            self.last_known = (!backwards).then(|| {
-                (
-                    s.last_update_s,
-                    Point3::from(s.x.fixed_rows::<3>(0).into_owned()),
-                )
-            });
-            self.prior = self.state.take().filter(|_| !backwards);
+            self.prior = self.state.take().filter(|_| !backwards).map(Prior::Lost);
         }
         let verdict = match (fix, self.state.is_some()) {
             (None, _) => {
@@ -361,7 +371,6 @@ impl PoseFilter {
     }
 
     fn start(&mut self, time_s: f64, fix: &Fix, imu_yaw: f64) {
-        self.last_known = None;
         self.prior = None;
         let mut x = Vector6::zeros();
         x.fixed_rows_mut::<3>(0)

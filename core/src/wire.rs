@@ -51,11 +51,7 @@ pub fn pose_estimate(
             .filter(|_| estimate.updated)
             .map(|f| f.towers_used.clone())
             .unwrap_or_default(),
-        coast_s: if estimate.updated {
-            0.0
-        } else {
-            estimate.coast_s.max(0.0)
-        },
+        coast_s: estimate.coast_s.max(0.0),
     }
 }
 

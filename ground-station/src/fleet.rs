@@ -43,8 +43,8 @@ pub enum Nav {
     /// Poses are coming (seconds since the last).
     Fix(f64),
     /// Poses are coming, each the filter's prediction through a gap with no
-    /// tower fix: seconds since the last pose, and since the last tower fix.
-    Predicting { age: f64, coast_s: f64 },
+    /// tower fix (seconds since the last tower fix).
+    Predicting { coast_s: f64 },
     /// No tower in the last frames: the filter predicts but publishes
     /// nothing current (seconds since the last pose, if any).
     Coasting(Option<f64>),
@@ -315,7 +315,6 @@ impl Fleet {
             // A fresh pose says more than the status, sent once a second.
             (_, Some(a)) if a <= STALE_AFTER_S => match &view.last_pose {
                 Some(p) if p.is_coasting() => Nav::Predicting {
-                    age: a,
                     coast_s: p.coast_s + a,
                 },
                 _ => Nav::Fix(a),

@@ -173,7 +173,7 @@ fn pose_lines(ui: &mut egui::Ui, view: &UavView, link: Link, nav: Nav) {
                 view.pose_rate_hz()
             ));
         }
-        (_, Nav::Predicting { coast_s, .. }) => {
+        (_, Nav::Predicting { coast_s }) => {
             ui.colored_label(
                 Color32::ORANGE,
                 format!(

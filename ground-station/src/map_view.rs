@@ -346,7 +346,7 @@ fn draw_fleet(
         let (marker, name) = match (link, nav) {
             (Link::Lost(_), _) => (Color32::RED, format!("{uav}: LINK LOST, last known")),
             (Link::Stale(_), _) => (Color32::GRAY, format!("{uav} (late)")),
-            (_, Nav::Predicting { coast_s, .. }) => (
+            (_, Nav::Predicting { coast_s }) => (
                 Color32::ORANGE,
                 format!("{uav}: coasting {coast_s:.0} s, predicted"),
             ),

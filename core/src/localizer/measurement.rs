@@ -11,7 +11,7 @@
 //! folded in with them, so the same code serves any attitude.
 
 use nalgebra::{Point3, RowVector4};
-use towernav_geometry::{Cut, EDGE_MARGIN_PX, FrameCamera, Intrinsics, Projected};
+use towernav_geometry::{Cut, EDGE_MARGIN_PX, FrameCamera, Intrinsics, PixelBox, Projected};
 
 use super::{LocalizerParams, Observation};
 
@@ -34,8 +34,13 @@ pub struct Usable {
 
 impl Usable {
     pub fn of(o: &Observation<'_>, k: &Intrinsics, params: &LocalizerParams) -> Self {
-        let margin = EDGE_MARGIN_PX.max(params.cut_margin_share * o.raw.height());
-        let cut = Cut::in_frame_within(&o.raw, k, margin);
+        Self::of_box(&o.raw, k, params)
+    }
+
+    /// The same for a box in the real image, without its tower.
+    pub fn of_box(raw: &PixelBox, k: &Intrinsics, params: &LocalizerParams) -> Self {
+        let margin = EDGE_MARGIN_PX.max(params.cut_margin_share * raw.height());
+        let cut = Cut::in_frame_within(raw, k, margin);
         Self {
             centre: !cut.side(),
             top: !cut.top,

@@ -17,6 +17,7 @@ use towernav_geometry::PixelBox;
 
 use crate::landmarks::MapTower;
 
+pub use measurement::Usable;
 pub use paper::{Height, paper_lbl, paper_range};
 pub use robust::{RobustFix, robust_lbl, robust_lbl_with_height};
 pub use single::single_tower_position;

@@ -13,9 +13,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::Distribution;
 use serde::Serialize;
 use towernav_core::landmarks::LandmarkMap;
-use towernav_core::localizer::Method;
+use towernav_core::localizer::{Method, Usable};
 use towernav_core::pipeline::{Pipeline, PipelineConfig};
-use towernav_geometry::{Cut, EDGE_MARGIN_PX, PixelBox};
+use towernav_geometry::PixelBox;
 use towernav_onnx::{DetectorOptions, YoloDetector};
 use towernav_sim::world::WorldParams;
 use towernav_sim::{Barometer, BarometerParams, Conditions, Scenario, World};
@@ -446,9 +446,7 @@ fn horizontal_error(
 /// of its centre column, top and foot rows are usable, by the localizer's rule.
 fn too_cut(bbox: &PixelBox, pipeline: &Pipeline) -> bool {
     let config = pipeline.config();
-    let margin = EDGE_MARGIN_PX.max(config.localizer.cut_margin_share * bbox.height());
-    let cut = Cut::in_frame_within(bbox, &config.camera.intrinsics, margin);
-    usize::from(!cut.side()) + usize::from(!cut.top) + usize::from(!cut.bottom) < 2
+    Usable::of_box(bbox, &config.camera.intrinsics, &config.localizer).count() < 2
 }
 
 /// Bound tracks whose box lies on another tower than their own.

@@ -8,6 +8,8 @@ use serde::Serialize;
 
 use super::loc_bench::{BenchRow, FrameRow};
 
+const OUTCOMES: usize = 11;
+
 /// Where along the chain a frame with a tower in view ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -43,7 +45,7 @@ pub enum Outcome {
 }
 
 impl Outcome {
-    pub const ALL: [Outcome; 11] = [
+    pub const ALL: [Outcome; OUTCOMES] = [
         Outcome::Published,
         Outcome::HeldBack,
         Outcome::NotRestarted,
@@ -108,11 +110,8 @@ impl Outcome {
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct Gaps {
     pub detector: String,
-    pub level: [usize; 11],
-    pub banked: [usize; 11],
-    /// Of the frames with a tower in view, those with a bound box and one
-    /// tower only: what a one-tower fix can reach.
-    pub one_tower_bound: usize,
+    pub level: [usize; OUTCOMES],
+    pub banked: [usize; OUTCOMES],
 }
 
 impl Gaps {
@@ -135,7 +134,6 @@ impl Gaps {
             } else if roll > 10.0 {
                 gaps.banked[i] += 1;
             }
-            gaps.one_tower_bound += usize::from(f.bound == 1);
         }
         gaps
     }
@@ -149,7 +147,7 @@ pub fn table(gaps: &Gaps) -> Table {
         "level".into(),
         "banked".into(),
     ]);
-    let share = |counts: &[usize; 11], i: usize| {
+    let share = |counts: &[usize; OUTCOMES], i: usize| {
         let n: usize = counts.iter().sum();
         format!(
             "{:.1} % ({})",
@@ -224,7 +222,6 @@ mod tests {
         let gaps = Gaps::of("oracle", &[&row]);
         assert_eq!(gaps.level, [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1]);
         assert_eq!(gaps.banked, [0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0]);
-        assert_eq!(gaps.one_tower_bound, 1);
         let text = table(&gaps).to_string();
         assert!(text.contains("100.0 % (1)"), "{text}");
     }
