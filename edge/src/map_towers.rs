@@ -226,7 +226,7 @@ pub fn map_towers(
     let (towers, uncertain): (Vec<_>, Vec<_>) = mapper
         .finish(&options.triangulation, ground_z)
         .into_iter()
-        .partition(|t| t.estimate.sigma_horizontal_m() <= options.max_sigma_m);
+        .partition(|t| t.is_solid(options.max_sigma_m));
     let known_in_world: Vec<KnownTower> = known
         .iter()
         .zip(&survey)

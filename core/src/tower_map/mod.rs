@@ -3,6 +3,8 @@
 //! tracks of one tower merged, and the result held against the database
 //! (`matching`). Pure: views in, estimates out.
 
+pub mod adjust;
+mod bordered;
 pub mod matching;
 pub mod triangulate;
 
@@ -21,6 +23,16 @@ pub struct MappedTower {
     pub tower_type: Option<TowerType>,
     /// The tracks whose views made it.
     pub track_ids: Vec<u64>,
+    /// The longest stretch of flight it was seen in without a break, s.
+    pub followed_s: f64,
+}
+
+impl MappedTower {
+    /// Placed within `max_sigma_m` (one sigma), and seen long enough
+    /// without a break to be a tower, not a few stray boxes that cross.
+    pub fn is_solid(&self, max_sigma_m: f64) -> bool {
+        self.estimate.sigma_horizontal_m() <= max_sigma_m && self.followed_s >= FOLLOWED_S
+    }
 }
 
 /// Pieces of tracks that place one tower: where, how near another piece
@@ -112,12 +124,13 @@ fn split_at_switches(views: &[TowerView], ground_z: f64) -> Vec<Vec<TowerView>> 
 }
 
 /// The one tower a view can be of: its bearing passes the tower's foot
-/// within 3 sigma and, where its foot row lands on the ground, near it. A
+/// within 3 `sigma` (of the tower and the range) and, where its foot row lands on the ground, near it. A
 /// view that fits none, or two (towers one behind the other), is no one's.
 fn owner(
     v: &TowerView,
     towers: &[TowerEstimate],
-    p: &TriangulationParams,
+    claiming: &[bool],
+    sigma: impl Fn(&TowerEstimate, f64) -> f64,
     ground_z: Option<f64>,
 ) -> Option<usize> {
     let d = v.centre_ray.xy();
@@ -127,11 +140,13 @@ fn owner(
     let normal = nalgebra::Vector2::new(-d.y, d.x) / d.norm();
     let c = v.camera_in_world.xy();
     let ground = ground_z.and_then(|z| v.ground_point(z));
-    let mut fits = towers.iter().enumerate().filter(|(_, t)| {
+    let mut fits = towers.iter().enumerate().filter(|(k, t)| {
+        if !claiming[*k] {
+            return false;
+        }
         let to = t.foot_in_world.xy() - c;
         let range = to.norm();
-        let sigma = (range * p.bearing_sigma_rad).hypot(p.position_sigma_m);
-        let on_bearing = to.dot(&d) > 0.0 && normal.dot(&to).abs() <= 3.0 * sigma;
+        let on_bearing = to.dot(&d) > 0.0 && normal.dot(&to).abs() <= 3.0 * sigma(t, range);
         let at_range = ground.is_none_or(|g| {
             (g - t.foot_in_world.xy()).norm() <= SWITCH_M.max(SWITCH_SHARE * range)
         });
@@ -139,6 +154,36 @@ fn owner(
     });
     let first = fits.next()?.0;
     fits.next().is_none().then_some(first)
+}
+
+/// Whether a tower may take views from other clusters: placed within
+/// `MERGE_M` and seen for `FOLLOWED_S` without a break. One that is not (a
+/// few views of clutter, leftovers of other towers' tracks) keeps its own
+/// views but takes no other's: it would take them from their tower.
+fn claims(t: &TowerEstimate, views: &[TowerView]) -> bool {
+    t.sigma_horizontal_m() <= MERGE_M && longest_run_s(views) >= FOLLOWED_S
+}
+
+/// A tower some track followed this long, s: a cluster of a few short
+/// tracks is clutter or the leftovers of other towers' tracks.
+pub const FOLLOWED_S: f64 = 3.0;
+/// Views further apart than this break a run.
+const RUN_GAP_S: f64 = 0.5;
+
+/// The longest stretch of `views` (in time order) without a gap.
+fn longest_run_s(views: &[TowerView]) -> f64 {
+    let mut longest: f64 = 0.0;
+    let mut start = None;
+    for pair in views.windows(2) {
+        let (a, b) = (pair[0].time_s, pair[1].time_s);
+        let from = *start.get_or_insert(a);
+        if b - a > RUN_GAP_S {
+            start = Some(b);
+        } else {
+            longest = longest.max(b - from);
+        }
+    }
+    longest
 }
 
 fn median_point(points: &[nalgebra::Point2<f64>]) -> Option<nalgebra::Point2<f64>> {
@@ -164,7 +209,8 @@ impl TowerMapper {
     /// Every track triangulated, cut first where it jumps between towers
     /// (with `ground_z`, the ground's height in the world frame, to place
     /// each view's foot); tracks of one tower (a tower passed twice, a track
-    /// lost and found again) merged and triangulated together.
+    /// lost and found again) merged and triangulated together; then all the
+    /// towers adjusted at once with the flight's pose errors (`adjust`).
     pub fn finish(&self, p: &TriangulationParams, ground_z: Option<f64>) -> Vec<MappedTower> {
         let mut pieces: Vec<(u64, Vec<TowerView>)> = Vec::new();
         for (id, (views, _)) in &self.tracks {
@@ -218,42 +264,181 @@ impl TowerMapper {
                 }),
             }
         }
-        let groups: Vec<(TowerEstimate, Vec<u64>, Vec<TowerView>)> = clusters
+        let groups = merge_duplicates(clusters, p);
+        let views: Vec<Vec<TowerView>> = groups.iter().map(|g| g.2.clone()).collect();
+        let firsts: Vec<TowerEstimate> = groups.iter().map(|g| g.0.clone()).collect();
+        let sigma =
+            |_: &TowerEstimate, range: f64| (range * p.bearing_sigma_rad).hypot(p.position_sigma_m);
+        let owned = reown(&views, &firsts, |v| *v, sigma, ground_z);
+        let towers: Vec<(Vec<u64>, Vec<TowerView>, TowerEstimate)> = groups
             .into_iter()
-            .filter_map(|mut c| {
-                c.views.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
-                Some((triangulate(&c.views, p)?, c.ids, c.views))
+            .zip(owned)
+            .map(|((first, ids, _), views)| {
+                let estimate = triangulate(&views, p).unwrap_or(first);
+                (ids, views, estimate)
             })
             .collect();
-        let firsts: Vec<TowerEstimate> = groups.iter().map(|g| g.0.clone()).collect();
-        let all: Vec<&TowerView> = groups.iter().flat_map(|g| g.2.iter()).collect();
-        let owners: Vec<Option<usize>> =
-            all.iter().map(|v| owner(v, &firsts, p, ground_z)).collect();
-        groups
-            .iter()
-            .enumerate()
-            .map(|(k, (first, ids, _))| {
+        let adjusted = adjusted(&towers, p, ground_z);
+        towers
+            .into_iter()
+            .zip(adjusted)
+            .map(|((ids, views, estimate), better)| {
+                let (views, estimate) = better.unwrap_or((views, estimate));
                 let mut types: BTreeMap<TowerType, usize> = BTreeMap::new();
-                for id in ids {
+                for id in &ids {
                     for (t, n) in &self.tracks[id].1 {
                         *types.entry(*t).or_default() += n;
                     }
                 }
-                let mut views: Vec<TowerView> = all
-                    .iter()
-                    .zip(&owners)
-                    .filter(|(_, o)| **o == Some(k))
-                    .map(|(v, _)| **v)
-                    .collect();
-                views.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
-                let estimate = triangulate(&views, p).unwrap_or_else(|| first.clone());
                 let tower_type = types.into_iter().max_by_key(|(_, n)| *n).map(|(t, _)| t);
                 MappedTower {
                     estimate,
                     tower_type,
-                    track_ids: ids.clone(),
+                    track_ids: ids,
+                    followed_s: longest_run_s(&views),
                 }
             })
             .collect()
     }
 }
+
+/// Every view given to the one tower it fits (`owner`, the view as
+/// `correct` makes it), in time order; a tower that does not claim keeps
+/// its own views that fit no other.
+fn reown(
+    views: &[Vec<TowerView>],
+    towers: &[TowerEstimate],
+    correct: impl Fn(&TowerView) -> TowerView,
+    sigma: impl Fn(&TowerEstimate, f64) -> f64 + Copy,
+    ground_z: Option<f64>,
+) -> Vec<Vec<TowerView>> {
+    let claiming: Vec<bool> = towers
+        .iter()
+        .zip(views)
+        .map(|(t, v)| claims(t, v))
+        .collect();
+    let mut owned = vec![Vec::new(); towers.len()];
+    for (from, tower_views) in views.iter().enumerate() {
+        for v in tower_views {
+            match owner(&correct(v), towers, &claiming, sigma, ground_z) {
+                Some(k) => owned[k].push(*v),
+                None if !claiming[from] => owned[from].push(*v),
+                None => {}
+            }
+        }
+    }
+    for o in &mut owned {
+        o.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    }
+    owned
+}
+
+/// Clusters triangulated, and two whose towers land within `MERGE_M` (or 3
+/// sigma together) of each other merged and triangulated again: two pieces
+/// of one tower's tracks anchored apart (one seen from one side only) would
+/// otherwise both claim its views, and a view two towers claim is no one's.
+fn merge_duplicates(
+    clusters: Vec<Cluster>,
+    p: &TriangulationParams,
+) -> Vec<(TowerEstimate, Vec<u64>, Vec<TowerView>)> {
+    let mut groups: Vec<(TowerEstimate, Vec<u64>, Vec<TowerView>)> = clusters
+        .into_iter()
+        .filter_map(|mut c| {
+            c.views.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+            Some((triangulate(&c.views, p)?, c.ids, c.views))
+        })
+        .collect();
+    loop {
+        let close = |a: &TowerEstimate, b: &TowerEstimate| {
+            let gate = MERGE_M.max(
+                3.0 * (a.covariance_en + b.covariance_en)
+                    .symmetric_eigenvalues()
+                    .max()
+                    .max(0.0)
+                    .sqrt(),
+            );
+            (a.foot_in_world.xy() - b.foot_in_world.xy()).norm() <= gate
+        };
+        let pair = (0..groups.len()).find_map(|i| {
+            (i + 1..groups.len())
+                .find(|&j| close(&groups[i].0, &groups[j].0))
+                .map(|j| (i, j))
+        });
+        let Some((i, j)) = pair else {
+            return groups;
+        };
+        let (_, ids, views) = groups.remove(j);
+        let mut merged = std::mem::take(&mut groups[i].2);
+        merged.extend(views);
+        merged.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+        for id in ids {
+            if !groups[i].1.contains(&id) {
+                groups[i].1.push(id);
+            }
+        }
+        match triangulate(&merged, p) {
+            Some(e) => {
+                groups[i].0 = e;
+                groups[i].2 = merged;
+            }
+            // Not one tower after all: keep the first as it was.
+            None => groups[i].2 = merged,
+        }
+    }
+}
+
+/// The towers placed together with the flight's pose errors (`adjust`);
+/// then every view given again to the one tower its corrected line passes
+/// (the camera moved by the solved GNSS error, the bearing turned by the
+/// solved heading error: far tighter than the pose's own errors), and the
+/// towers adjusted again. Each view's camera is corrected before the
+/// heights are measured. `None` for a tower left as it was.
+fn adjusted(
+    towers: &[(Vec<u64>, Vec<TowerView>, TowerEstimate)],
+    p: &TriangulationParams,
+    ground_z: Option<f64>,
+) -> Vec<Option<(Vec<TowerView>, TowerEstimate)>> {
+    let views: Vec<Vec<TowerView>> = towers.iter().map(|t| t.1.clone()).collect();
+    let starts: Vec<_> = towers.iter().map(|t| t.2.foot_in_world.xy()).collect();
+    let Some(a) = adjust::adjust(&views, &starts, p) else {
+        return vec![None; towers.len()];
+    };
+    let placed: Vec<TowerEstimate> = towers
+        .iter()
+        .enumerate()
+        .map(|(j, (_, _, first))| TowerEstimate {
+            foot_in_world: nalgebra::Point3::new(a.feet[j].x, a.feet[j].y, first.foot_in_world.z),
+            covariance_en: a.covariances[j],
+            ..first.clone()
+        })
+        .collect();
+    let sigma = |t: &TowerEstimate, range: f64| {
+        (range * p.box_sigma_rad)
+            .hypot(t.sigma_horizontal_m())
+            .hypot(adjust::MIN_LINE_SIGMA_M)
+    };
+    let regrouped = reown(&views, &placed, |v| a.corrected(v), sigma, ground_z);
+    let Some(a) = adjust::adjust(&regrouped, &a.feet, p) else {
+        return vec![None; towers.len()];
+    };
+    regrouped
+        .into_iter()
+        .enumerate()
+        .map(|(j, views)| {
+            // A tower left with too few views stays as it was.
+            if views.len() < p.min_views {
+                return None;
+            }
+            let moved: Vec<TowerView> = views.iter().map(|v| a.corrected(v)).collect();
+            let mut e = triangulate::measured_at(&moved, a.feet[j], a.covariances[j], p)?;
+            let weights = &a.weights[j];
+            let inliers = weights.iter().filter(|w| **w >= 1.0).count();
+            e.inlier_share = inliers as f64 / weights.len().max(1) as f64;
+            Some((views, e))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+#[path = "mapper_tests.rs"]
+mod tests;

@@ -7,7 +7,8 @@
 //! each weighted by its range (a bearing error moves the line more far
 //! away) and the camera's position error. With the foot known, each uncut
 //! view's top and foot rays meet the tower's axis at a height; the median
-//! over views is the foot's elevation and the tower's height.
+//! over the nearer views, weighted by the inverse square of the range, is
+//! the foot's elevation and the tower's height.
 
 use nalgebra::{Matrix2, Point2, Point3, Vector2, Vector3};
 
@@ -28,15 +29,17 @@ pub struct TowerView {
 /// How much to trust a view.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TriangulationParams {
-    /// One-sigma bearing error of a box's centre (detector and attitude), rad.
+    /// One-sigma heading error of the attitude, rad.
     pub bearing_sigma_rad: f64,
+    /// One-sigma bearing error of a box's centre, the detector's own, rad.
+    pub box_sigma_rad: f64,
     /// One-sigma horizontal error of the camera's position (GNSS), m.
     pub position_sigma_m: f64,
     /// How long the GNSS error takes to forget itself, s: views closer in
     /// time share it, so it shrinks with the passes' length, not the
     /// number of frames.
     pub position_correlation_s: f64,
-    /// Bearing errors closer in time than this are one error, s.
+    /// Heading errors closer in time than this are one error, s.
     pub bearing_correlation_s: f64,
     /// The views' bearings must spread this much, rad: parallel lines
     /// cross anywhere.
@@ -53,6 +56,7 @@ impl Default for TriangulationParams {
     fn default() -> Self {
         Self {
             bearing_sigma_rad: 0.5_f64.to_radians(),
+            box_sigma_rad: 0.2_f64.to_radians(),
             position_sigma_m: 1.5,
             position_correlation_s: 10.0,
             bearing_correlation_s: 3.0,
@@ -170,6 +174,20 @@ pub fn triangulate(views: &[TowerView], p: &TriangulationParams) -> Option<Tower
     let position_samples = distinct_bins(times(), 2.0 * p.position_correlation_s);
     let covariance_en = info.try_inverse()? * bearing_share
         + Matrix2::identity() * p.position_sigma_m.powi(2) / position_samples;
+    let mut e = measured_at(views, at, covariance_en, p)?;
+    e.spread_rad = spread;
+    e.inlier_share = inlier_share;
+    Some(e)
+}
+
+/// The estimate of a tower whose foot is placed at `at` with `covariance_en`:
+/// its height and the foot's elevation from the views' top and foot rows.
+pub(crate) fn measured_at(
+    views: &[TowerView],
+    at: Point2<f64>,
+    covariance_en: Matrix2<f64>,
+    p: &TriangulationParams,
+) -> Option<TowerEstimate> {
     let (foot_z, height, spread_sigma, height_views) = heights(views, &at, p.bearing_correlation_s);
     // A foot misplaced along the bearing scales the height with the range.
     let ranges: Vec<f64> = views
@@ -186,10 +204,10 @@ pub fn triangulate(views: &[TowerView], p: &TriangulationParams) -> Option<Tower
         covariance_en,
         height_m: height,
         height_sigma_m: height_sigma,
-        views: lines.len(),
+        views: views.len(),
         height_views,
-        spread_rad: spread,
-        inlier_share,
+        spread_rad: bearing_spread(views.iter().filter_map(line).map(|l| l.2)),
+        inlier_share: 1.0,
     })
 }
 
@@ -242,28 +260,39 @@ fn height_on_axis(c: &Point3<f64>, ray: &Vector3<f64>, axis: &Point2<f64>) -> Op
     (along > 0.0).then(|| c.z + ray.z * along / hn)
 }
 
-/// The foot's elevation (median of every view's foot row, uncut views
-/// first), the height (median over uncut views), its one-sigma from the
-/// spread (1.4826 MAD over the square root of the stretches of
-/// `correlation_s` the views fall in, at least 0.1 m), and how many views
-/// gave a height.
+/// The foot's elevation (weighted median of the near uncut views' foot
+/// rows, of every view's where all are cut), the height (weighted median
+/// over the near uncut views), its one-sigma from the spread (1.4826
+/// weighted MAD over the square root of the stretches of `correlation_s`
+/// the views fall in, at least 0.1 m), and how many views gave a height.
 fn heights(
     views: &[TowerView],
     axis: &Point2<f64>,
     correlation_s: f64,
 ) -> (Option<f64>, Option<f64>, f64, usize) {
+    // (value, weight): a row's error grows with the range, so a view's
+    // weight falls with its square.
     let mut feet = Vec::new();
     let mut heights = Vec::new();
     let mut times = Vec::new();
+    let range = |v: &TowerView| (axis - v.camera_in_world.xy()).norm().max(1.0);
+    let weight = |v: &TowerView| 1.0 / range(v).powi(2);
+    // Far views lose a thin top: only those within twice the range of the
+    // nearest tenth of the views measure the height.
+    let mut ranges: Vec<f64> = views.iter().filter(|v| !v.cut).map(range).collect();
+    ranges.sort_by(f64::total_cmp);
+    let near = ranges
+        .get(ranges.len() / 10)
+        .map_or(f64::INFINITY, |r| 2.0 * r);
     for v in views {
         let foot = height_on_axis(&v.camera_in_world, &v.foot_ray, axis);
         let top = height_on_axis(&v.camera_in_world, &v.top_ray, axis);
         if v.cut {
             continue;
         }
-        if let (Some(f), Some(t)) = (foot, top) {
-            feet.push(f);
-            heights.push(t - f);
+        if let (Some(f), Some(t), true) = (foot, top, range(v) <= near) {
+            feet.push((f, weight(v)));
+            heights.push((t - f, weight(v)));
             times.push(v.time_s);
         }
     }
@@ -271,18 +300,42 @@ fn heights(
         // Only cut views: the foot row is still the best ground there is.
         feet = views
             .iter()
-            .filter_map(|v| height_on_axis(&v.camera_in_world, &v.foot_ray, axis))
+            .filter_map(|v| {
+                Some((
+                    height_on_axis(&v.camera_in_world, &v.foot_ray, axis)?,
+                    weight(v),
+                ))
+            })
             .collect();
     }
     let n = heights.len();
-    let sigma = match n {
-        0 => f64::INFINITY,
-        _ => {
+    let height = weighted_median(&heights);
+    let sigma = match height {
+        None => f64::INFINITY,
+        Some(h) => {
+            let deviations: Vec<(f64, f64)> =
+                heights.iter().map(|(x, w)| ((x - h).abs(), *w)).collect();
             let independent = distinct_bins(times.into_iter(), correlation_s);
-            (1.4826 * mad(&heights) / independent.sqrt()).max(0.1)
+            let spread = weighted_median(&deviations).unwrap_or(0.0);
+            (1.4826 * spread / independent.sqrt()).max(0.1)
         }
     };
-    (median(&feet), median(&heights), sigma, n)
+    (weighted_median(&feet), height, sigma, n)
+}
+
+/// The value below which half the weight lies.
+fn weighted_median(values: &[(f64, f64)]) -> Option<f64> {
+    let mut s: Vec<(f64, f64)> = values.iter().copied().filter(|(_, w)| *w > 0.0).collect();
+    s.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let half = s.iter().map(|(_, w)| w).sum::<f64>() / 2.0;
+    let mut below = 0.0;
+    for (x, w) in &s {
+        below += w;
+        if below >= half {
+            return Some(*x);
+        }
+    }
+    None
 }
 
 pub fn median(v: &[f64]) -> Option<f64> {
@@ -297,12 +350,6 @@ pub fn median(v: &[f64]) -> Option<f64> {
     } else {
         (s[m - 1] + s[m]) / 2.0
     })
-}
-
-fn mad(v: &[f64]) -> f64 {
-    let Some(m) = median(v) else { return 0.0 };
-    let d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    median(&d).unwrap_or(0.0)
 }
 
 #[cfg(test)]

@@ -1,0 +1,268 @@
+//! Every tower of a flight placed at once, with the pose's errors solved
+//! beside them.
+//!
+//! Towers triangulated one by one each inherit the GNSS error averaged over
+//! their own views, and the heading error of each pass. Those errors are
+//! shared: every tower in view at one moment sees the camera from the same
+//! wrong place and turned by the same wrong heading. So the adjustment
+//! solves, with the feet, the GNSS error of each second of flight and the
+//! heading error of each second, each a first-order Gauss-Markov process
+//! with the receiver's and the attitude's sigma and correlation time as its
+//! prior. What the views cannot tell apart (all towers and all camera
+//! positions moved together) stays with the prior: the flight's mean GNSS
+//! error, which the covariance reports.
+//!
+//! Each view's ground line gives one equation, linear in the unknowns:
+//! `n . (foot - camera + gnss_error) + range * heading_error = 0`, with `n`
+//! the normal of its measured bearing. The system is solved by iteratively
+//! reweighted least squares (Huber), ranges refreshed each round.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Matrix2, Matrix3, Point2, Rotation3, Vector2, Vector3};
+
+use super::bordered::{Bordered, Solution};
+
+use super::triangulate::{TowerView, TriangulationParams};
+
+/// Seconds of flight that share one GNSS error and one heading error.
+const BIN_S: f64 = 1.0;
+const ROUNDS: usize = 8;
+/// How far a tower may be from where it started, one sigma: no constraint
+/// at all, only there so that a tower without views leaves the system
+/// solvable.
+const START_SIGMA_M: f64 = 1e4;
+/// A view's line is never trusted closer than this (the tower's own width).
+pub const MIN_LINE_SIGMA_M: f64 = 0.3;
+
+/// The feet, their covariances and the camera's position error over time.
+#[derive(Debug, Clone)]
+pub struct Adjustment {
+    pub feet: Vec<Point2<f64>>,
+    pub covariances: Vec<Matrix2<f64>>,
+    /// Each view's weight in the last round (Huber, 1 for an inlier), per
+    /// tower, in the views' order.
+    pub weights: Vec<Vec<f64>>,
+    gnss: BTreeMap<i64, Vector2<f64>>,
+    heading: BTreeMap<i64, f64>,
+}
+
+impl Adjustment {
+    /// The GNSS error solved for the second holding `time_s` (zero where no
+    /// view was).
+    pub fn gnss_error(&self, time_s: f64) -> Vector2<f64> {
+        self.gnss
+            .get(&bin(time_s))
+            .copied()
+            .unwrap_or_else(Vector2::zeros)
+    }
+
+    /// The heading error solved for the second holding `time_s`, rad.
+    pub fn heading_error(&self, time_s: f64) -> f64 {
+        self.heading.get(&bin(time_s)).copied().unwrap_or(0.0)
+    }
+
+    /// `view` with its camera moved by the GNSS error and its rays turned
+    /// back by the heading error solved for its second.
+    pub fn corrected(&self, view: &TowerView) -> TowerView {
+        let e = self.gnss_error(view.time_s);
+        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), -self.heading_error(view.time_s));
+        TowerView {
+            camera_in_world: view.camera_in_world - Vector3::new(e.x, e.y, 0.0),
+            centre_ray: turn * view.centre_ray,
+            top_ray: turn * view.top_ray,
+            foot_ray: turn * view.foot_ray,
+            ..*view
+        }
+    }
+}
+
+fn bin(time_s: f64) -> i64 {
+    (time_s / BIN_S).floor() as i64
+}
+
+/// A view's ground line: the camera's logged place, the normal of its
+/// measured bearing, its second's index.
+struct Line {
+    tower: usize,
+    camera: Point2<f64>,
+    normal: Vector2<f64>,
+    bearing: Vector2<f64>,
+    second: usize,
+    /// 1 over the views of this tower in this second: a tower seen 30 times
+    /// a second counts once a second.
+    share: f64,
+}
+
+/// Adjusts the towers `views` shows (one list per tower), starting from
+/// `starts`; `None` where the system is singular.
+pub fn adjust(
+    views: &[Vec<TowerView>],
+    starts: &[Point2<f64>],
+    p: &TriangulationParams,
+) -> Option<Adjustment> {
+    let mut seconds = BTreeMap::new();
+    for v in views.iter().flatten() {
+        seconds.entry(bin(v.time_s)).or_insert(0);
+    }
+    for (k, index) in seconds.values_mut().enumerate() {
+        *index = k;
+    }
+    let lines = lines(views, &seconds);
+    let mut feet = starts.to_vec();
+    let mut weights: Vec<f64> = vec![1.0; lines.len()];
+    let mut solution = None;
+    for round in 0..ROUNDS {
+        let ranges: Vec<f64> = lines
+            .iter()
+            .map(|l| l.bearing.dot(&(feet[l.tower] - l.camera)).max(1.0))
+            .collect();
+        if let (true, Some(s)) = (round > 0, &solution) {
+            for ((w, l), r) in weights.iter_mut().zip(&lines).zip(&ranges) {
+                let residual = residual(l, *r, s) / line_sigma(*r, p);
+                *w = if residual.abs() <= p.huber_k {
+                    1.0
+                } else {
+                    p.huber_k / residual.abs()
+                };
+            }
+        }
+        let s = system(&lines, &ranges, &weights, &seconds, p, starts).solve()?;
+        for (j, f) in feet.iter_mut().enumerate() {
+            *f = Point2::new(s.towers[2 * j], s.towers[2 * j + 1]);
+        }
+        solution = Some(s);
+    }
+    let s = solution?;
+    let covariances = (0..views.len())
+        .map(|j| {
+            s.towers_covariance
+                .fixed_view::<2, 2>(2 * j, 2 * j)
+                .into_owned()
+        })
+        .collect();
+    let gnss = seconds
+        .iter()
+        .map(|(b, &k)| (*b, s.seconds[k].xy()))
+        .collect();
+    let heading = seconds.iter().map(|(b, &k)| (*b, s.seconds[k].z)).collect();
+    let mut per_tower = vec![Vec::new(); views.len()];
+    for (l, w) in lines.iter().zip(weights) {
+        per_tower[l.tower].push(w);
+    }
+    Some(Adjustment {
+        feet,
+        covariances,
+        weights: per_tower,
+        gnss,
+        heading,
+    })
+}
+
+/// A view's own error at `range`: the box's, at least the tower's width.
+fn line_sigma(range: f64, p: &TriangulationParams) -> f64 {
+    (range * p.box_sigma_rad).hypot(MIN_LINE_SIGMA_M)
+}
+
+fn lines(views: &[Vec<TowerView>], seconds: &BTreeMap<i64, usize>) -> Vec<Line> {
+    let mut lines = Vec::new();
+    for (tower, tower_views) in views.iter().enumerate() {
+        let mut per_second: BTreeMap<i64, usize> = BTreeMap::new();
+        for v in tower_views {
+            *per_second.entry(bin(v.time_s)).or_default() += 1;
+        }
+        for v in tower_views {
+            let d = v.centre_ray.xy();
+            let n = d.norm();
+            if n < 1e-9 {
+                continue;
+            }
+            let bearing = d / n;
+            let b = bin(v.time_s);
+            lines.push(Line {
+                tower,
+                camera: v.camera_in_world.xy(),
+                normal: Vector2::new(-bearing.y, bearing.x),
+                bearing,
+                second: seconds[&b],
+                share: 1.0 / per_second[&b] as f64,
+            });
+        }
+    }
+    lines
+}
+
+/// `n . (foot - camera + gnss) + range * heading`.
+fn residual(l: &Line, range: f64, s: &Solution) -> f64 {
+    let j = 2 * l.tower;
+    let foot = Vector2::new(s.towers[j], s.towers[j + 1]);
+    let u = s.seconds[l.second];
+    l.normal.dot(&(foot - l.camera.coords + u.xy())) + range * u.z
+}
+
+/// The normal equations: the views, then the Gauss-Markov priors.
+fn system(
+    lines: &[Line],
+    ranges: &[f64],
+    weights: &[f64],
+    seconds: &BTreeMap<i64, usize>,
+    p: &TriangulationParams,
+    starts: &[Point2<f64>],
+) -> Bordered {
+    let mut a = Bordered::zeros(2 * starts.len(), seconds.len());
+    for (j, start) in starts.iter().enumerate() {
+        let w = 1.0 / (START_SIGMA_M * START_SIGMA_M);
+        for axis in 0..2 {
+            a.tt[(2 * j + axis, 2 * j + axis)] += w;
+            a.rhs_t[2 * j + axis] += w * start[axis];
+        }
+    }
+    for ((l, r), w) in lines.iter().zip(ranges).zip(weights) {
+        let sigma = line_sigma(*r, p);
+        let w = w * l.share / (sigma * sigma);
+        let n = l.normal;
+        // d(residual)/d(foot) = n; d/d(second) = (n, range).
+        let u = Vector3::new(n.x, n.y, *r);
+        let rhs = n.dot(&l.camera.coords);
+        let (j, k) = (2 * l.tower, l.second);
+        let tower_block = w * n * n.transpose();
+        for (row, col) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+            a.tt[(j + row, j + col)] += tower_block[(row, col)];
+        }
+        for row in 0..2 {
+            a.rhs_t[j + row] += w * n[row] * rhs;
+            for col in 0..3 {
+                a.tb[(j + row, 3 * k + col)] += w * n[row] * u[col];
+            }
+        }
+        a.diagonal[k] += w * u * u.transpose();
+        a.rhs_b[k] += w * u * rhs;
+    }
+    let gnss_var = p.position_sigma_m.powi(2).max(1e-6);
+    let heading_var = p.bearing_sigma_rad.powi(2).max(1e-12);
+    let variance = Vector3::new(gnss_var, gnss_var, heading_var);
+    let correlation = Vector3::new(
+        p.position_correlation_s,
+        p.position_correlation_s,
+        p.bearing_correlation_s,
+    );
+    // A stationary first-order Gauss-Markov prior: the first second's
+    // variance, then each step's, (x_k - keep x_{k-1})^2 / (var (1 - keep^2)).
+    let times: Vec<f64> = seconds.keys().map(|b| (*b as f64 + 0.5) * BIN_S).collect();
+    if !times.is_empty() {
+        a.diagonal[0] += Matrix3::from_diagonal(&variance.map(|v| 1.0 / v));
+    }
+    for k in 1..times.len() {
+        let gap = times[k] - times[k - 1];
+        let keep = correlation.map(|c| if c > 0.0 { (-gap / c).exp() } else { 0.0 });
+        let w = variance.zip_map(&keep, |v, c| 1.0 / (v * (1.0 - c * c)).max(1e-12));
+        a.diagonal[k] += Matrix3::from_diagonal(&w);
+        a.diagonal[k - 1] += Matrix3::from_diagonal(&w.component_mul(&keep.component_mul(&keep)));
+        a.below[k] -= Matrix3::from_diagonal(&w.component_mul(&keep));
+    }
+    a
+}
+
+#[cfg(test)]
+#[path = "adjust_tests.rs"]
+mod tests;
