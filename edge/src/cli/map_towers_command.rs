@@ -21,10 +21,15 @@ pub struct MapTowersArgs {
     /// PX4 .ulg, CSV, DJI .srt or a GoPro .mp4; default: a GoPro --video's own.
     #[arg(long)]
     log: Option<PathBuf>,
-    /// One-sigma horizontal error of the log's GNSS, metres.
+    /// One-sigma error of the log's GNSS, each horizontal axis, metres.
     #[arg(long, default_value_t = 1.5)]
     gnss_sigma_m: f64,
-    /// One-sigma bearing error of a box's centre (attitude and detector), degrees.
+    /// How long the GNSS error takes to forget itself, seconds: the towers
+    /// are placed with the error of every second of flight solved beside them.
+    #[arg(long, default_value_t = 10.0)]
+    gnss_correlation_s: f64,
+    /// One-sigma heading error of the log's attitude, degrees (it wanders
+    /// over 3 s); the box's own bearing error is 0.2 degrees.
     #[arg(long, default_value_t = 0.5)]
     bearing_sigma_deg: f64,
     /// A tower needs this many views.
@@ -54,8 +59,11 @@ impl MapTowersArgs {
             "mapping needs the calibration (--camera)"
         );
         anyhow::ensure!(
-            self.gnss_sigma_m >= 0.0 && self.bearing_sigma_deg > 0.0 && self.min_views >= 2,
-            "--gnss-sigma-m must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
+            self.gnss_sigma_m >= 0.0
+                && self.gnss_correlation_s >= 0.0
+                && self.bearing_sigma_deg > 0.0
+                && self.min_views >= 2,
+            "--gnss-sigma-m and --gnss-correlation-s must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
         );
         let mut c = r.survey_config(self.log.as_ref())?;
         if let Some(m) = &self.model {
@@ -65,6 +73,7 @@ impl MapTowersArgs {
             triangulation: TriangulationParams {
                 bearing_sigma_rad: self.bearing_sigma_deg.to_radians(),
                 position_sigma_m: self.gnss_sigma_m,
+                position_correlation_s: self.gnss_correlation_s,
                 min_views: self.min_views,
                 ..TriangulationParams::default()
             },
