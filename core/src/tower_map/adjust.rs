@@ -21,7 +21,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Matrix2, Matrix3, Point2, Rotation3, Vector2, Vector3};
 
-use super::bordered::{Bordered, Solution};
+use super::bordered::Bordered;
 
 use super::triangulate::{TowerView, TriangulationParams};
 
@@ -81,21 +81,55 @@ fn bin(time_s: f64) -> i64 {
     (time_s / BIN_S).floor() as i64
 }
 
-/// A view's ground line: the camera's logged place, the normal of its
-/// measured bearing, its second's index.
+/// A view's measured bearing from the camera's logged place.
 struct Line {
     tower: usize,
     camera: Point2<f64>,
-    normal: Vector2<f64>,
-    bearing: Vector2<f64>,
+    /// Radians from east, counter-clockwise.
+    bearing: f64,
     second: usize,
     /// 1 over the views of this tower in this second: a tower seen 30 times
     /// a second counts once a second.
     share: f64,
 }
 
+/// Where the current estimate puts a view's tower from its corrected
+/// camera: range, bearing and the bearing's unit normal.
+struct Predicted {
+    range: f64,
+    bearing: f64,
+    normal: Vector2<f64>,
+}
+
+impl Predicted {
+    fn of(l: &Line, feet: &[Point2<f64>], gnss: &[Vector2<f64>]) -> Self {
+        let to = feet[l.tower] - l.camera + gnss[l.second];
+        let range = to.norm().max(1.0);
+        Self {
+            range,
+            bearing: to.y.atan2(to.x),
+            normal: Vector2::new(-to.y, to.x) / range,
+        }
+    }
+
+    /// How far off the measured bearing is at the tower's range, metres,
+    /// with the second's heading error taken out.
+    fn miss(&self, l: &Line, heading: f64) -> f64 {
+        self.range * wrap(l.bearing - self.bearing - heading)
+    }
+}
+
+fn wrap(angle: f64) -> f64 {
+    (angle + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
 /// Adjusts the towers `views` shows (one list per tower), starting from
 /// `starts`; `None` where the system is singular.
+///
+/// Gauss-Newton on the bearings themselves, each linearised about the
+/// current estimate: the lines' normals are the predicted bearings', not
+/// the measured ones, whose noise would pull every tower seen along a
+/// narrow fan of bearings towards the cameras.
 pub fn adjust(
     views: &[Vec<TowerView>],
     starts: &[Point2<f64>],
@@ -110,16 +144,18 @@ pub fn adjust(
     }
     let lines = lines(views, &seconds);
     let mut feet = starts.to_vec();
+    let mut gnss = vec![Vector2::zeros(); seconds.len()];
+    let mut heading = vec![0.0; seconds.len()];
     let mut weights: Vec<f64> = vec![1.0; lines.len()];
-    let mut solution = None;
+    let mut covariance = None;
     for round in 0..ROUNDS {
-        let ranges: Vec<f64> = lines
+        let predicted: Vec<Predicted> = lines
             .iter()
-            .map(|l| l.bearing.dot(&(feet[l.tower] - l.camera)).max(1.0))
+            .map(|l| Predicted::of(l, &feet, &gnss))
             .collect();
-        if let (true, Some(s)) = (round > 0, &solution) {
-            for ((w, l), r) in weights.iter_mut().zip(&lines).zip(&ranges) {
-                let residual = residual(l, *r, s) / line_sigma(*r, p);
+        if round > 0 {
+            for ((w, l), at) in weights.iter_mut().zip(&lines).zip(&predicted) {
+                let residual = at.miss(l, heading[l.second]) / line_sigma(at.range, p);
                 *w = if residual.abs() <= p.huber_k {
                     1.0
                 } else {
@@ -127,25 +163,29 @@ pub fn adjust(
                 };
             }
         }
-        let s = system(&lines, &ranges, &weights, &seconds, p, starts).solve()?;
+        let s = system(
+            &lines,
+            &predicted,
+            &weights,
+            &seconds,
+            p,
+            starts,
+            (&feet, &gnss),
+        )
+        .solve()?;
         for (j, f) in feet.iter_mut().enumerate() {
             *f = Point2::new(s.towers[2 * j], s.towers[2 * j + 1]);
         }
-        solution = Some(s);
+        for (k, u) in s.seconds.iter().enumerate() {
+            gnss[k] = u.xy();
+            heading[k] = u.z;
+        }
+        covariance = Some(s.towers_covariance);
     }
-    let s = solution?;
+    let covariance = covariance?;
     let covariances = (0..views.len())
-        .map(|j| {
-            s.towers_covariance
-                .fixed_view::<2, 2>(2 * j, 2 * j)
-                .into_owned()
-        })
+        .map(|j| covariance.fixed_view::<2, 2>(2 * j, 2 * j).into_owned())
         .collect();
-    let gnss = seconds
-        .iter()
-        .map(|(b, &k)| (*b, s.seconds[k].xy()))
-        .collect();
-    let heading = seconds.iter().map(|(b, &k)| (*b, s.seconds[k].z)).collect();
     let mut per_tower = vec![Vec::new(); views.len()];
     for (l, w) in lines.iter().zip(weights) {
         per_tower[l.tower].push(w);
@@ -154,8 +194,8 @@ pub fn adjust(
         feet,
         covariances,
         weights: per_tower,
-        gnss,
-        heading,
+        gnss: seconds.iter().map(|(b, &k)| (*b, gnss[k])).collect(),
+        heading: seconds.iter().map(|(b, &k)| (*b, heading[k])).collect(),
     })
 }
 
@@ -173,17 +213,14 @@ fn lines(views: &[Vec<TowerView>], seconds: &BTreeMap<i64, usize>) -> Vec<Line> 
         }
         for v in tower_views {
             let d = v.centre_ray.xy();
-            let n = d.norm();
-            if n < 1e-9 {
+            if d.norm() < 1e-9 {
                 continue;
             }
-            let bearing = d / n;
             let b = bin(v.time_s);
             lines.push(Line {
                 tower,
                 camera: v.camera_in_world.xy(),
-                normal: Vector2::new(-bearing.y, bearing.x),
-                bearing,
+                bearing: d.y.atan2(d.x),
                 second: seconds[&b],
                 share: 1.0 / per_second[&b] as f64,
             });
@@ -192,22 +229,15 @@ fn lines(views: &[Vec<TowerView>], seconds: &BTreeMap<i64, usize>) -> Vec<Line> 
     lines
 }
 
-/// `n . (foot - camera + gnss) + range * heading`.
-fn residual(l: &Line, range: f64, s: &Solution) -> f64 {
-    let j = 2 * l.tower;
-    let foot = Vector2::new(s.towers[j], s.towers[j + 1]);
-    let u = s.seconds[l.second];
-    l.normal.dot(&(foot - l.camera.coords + u.xy())) + range * u.z
-}
-
 /// The normal equations: the views, then the Gauss-Markov priors.
 fn system(
     lines: &[Line],
-    ranges: &[f64],
+    predicted: &[Predicted],
     weights: &[f64],
     seconds: &BTreeMap<i64, usize>,
     p: &TriangulationParams,
     starts: &[Point2<f64>],
+    (feet, gnss): (&[Point2<f64>], &[Vector2<f64>]),
 ) -> Bordered {
     let mut a = Bordered::zeros(2 * starts.len(), seconds.len());
     for (j, start) in starts.iter().enumerate() {
@@ -217,14 +247,15 @@ fn system(
             a.rhs_t[2 * j + axis] += w * start[axis];
         }
     }
-    for ((l, r), w) in lines.iter().zip(ranges).zip(weights) {
-        let sigma = line_sigma(*r, p);
+    for ((l, at), w) in lines.iter().zip(predicted).zip(weights) {
+        let sigma = line_sigma(at.range, p);
         let w = w * l.share / (sigma * sigma);
-        let n = l.normal;
-        // d(residual)/d(foot) = n; d/d(second) = (n, range).
-        let u = Vector3::new(n.x, n.y, *r);
-        let rhs = n.dot(&l.camera.coords);
+        let n = at.normal;
+        // range * (measured - predicted bearing), linear in the unknowns:
+        // n . (foot + gnss) + range * heading = n . (foot0 + gnss0) + miss.
+        let u = Vector3::new(n.x, n.y, at.range);
         let (j, k) = (2 * l.tower, l.second);
+        let rhs = n.dot(&(feet[l.tower].coords + gnss[k])) + at.miss(l, 0.0);
         let tower_block = w * n * n.transpose();
         for (row, col) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
             a.tt[(j + row, j + col)] += tower_block[(row, col)];

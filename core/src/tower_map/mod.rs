@@ -425,8 +425,10 @@ fn adjusted(
         .into_iter()
         .enumerate()
         .map(|(j, views)| {
-            // A tower left with too few views stays as it was.
-            if views.len() < p.min_views {
+            // A tower left with too few views, or one the adjustment carried
+            // off (a handful of views that fit no line), stays as it was.
+            let start = towers[j].2.foot_in_world.xy();
+            if views.len() < p.min_views || (a.feet[j] - start).norm() > SWITCH_M {
                 return None;
             }
             let moved: Vec<TowerView> = views.iter().map(|v| a.corrected(v)).collect();
