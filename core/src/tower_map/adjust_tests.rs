@@ -168,3 +168,60 @@ fn a_view_of_nothing_does_not_move_the_towers() {
         "the stray view is down-weighted"
     );
 }
+
+#[test]
+fn a_tower_seen_along_a_narrow_fan_is_not_pulled_towards_the_cameras() {
+    // One pass towards a tower 50 m to the side, from 600 m to 60 m off:
+    // bearings from 5 to 40 degrees, each 2 degrees wrong (white).
+    let foot = Point2::new(0.0, 50.0);
+    let sigma = 2_f64.to_radians();
+    let p = TriangulationParams {
+        box_sigma_rad: sigma,
+        bearing_sigma_rad: 1e-6,
+        position_sigma_m: 1e-3,
+        ..TriangulationParams::default()
+    };
+    let (mut adjusted, mut crossed) = (0.0, 0.0);
+    let seeds = 20;
+    for seed in 0..seeds {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let views: Vec<TowerView> = (0..540)
+            .map(|i| {
+                let camera = Point3::new(-600.0 + i as f64, 0.0, 60.0);
+                let error: f64 = sigma * rng.sample::<f64, _>(StandardNormal);
+                let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), error);
+                let ray = |z: f64| turn * (Point3::new(foot.x, foot.y, z) - camera);
+                TowerView {
+                    time_s: i as f64 / 10.0,
+                    camera_in_world: camera,
+                    centre_ray: ray(15.0),
+                    top_ray: ray(30.0),
+                    foot_ray: ray(0.0),
+                    cut: false,
+                }
+            })
+            .collect();
+        let a = adjust(std::slice::from_ref(&views), &[foot], &p).expect("solvable");
+        adjusted += a.feet[0].x - foot.x;
+        // The plain crossing of the measured lines, each weighted by its
+        // range: the estimator whose normals carry the noise.
+        let (mut m, mut b) = (nalgebra::Matrix2::zeros(), Vector2::zeros());
+        for v in &views {
+            let d = v.centre_ray.xy().normalize();
+            let n = Vector2::new(-d.y, d.x);
+            let w = 1.0 / (foot - v.camera_in_world.xy()).norm_squared();
+            m += w * n * n.transpose();
+            b += w * n * n.dot(&v.camera_in_world.xy().coords);
+        }
+        crossed += (m.try_inverse().expect("invertible") * b).x - foot.x;
+    }
+    let (adjusted, crossed) = (adjusted / seeds as f64, crossed / seeds as f64);
+    assert!(
+        crossed < -1.0,
+        "the plain crossing is pulled back: {crossed:.2} m"
+    );
+    assert!(
+        adjusted.abs() < 0.3 * crossed.abs(),
+        "adjusted {adjusted:.2} m, crossed {crossed:.2} m"
+    );
+}
