@@ -123,9 +123,10 @@ fn split_at_switches(views: &[TowerView], ground_z: f64) -> Vec<Vec<TowerView>> 
     segments
 }
 
-/// The one tower a view can be of: its bearing passes the tower's foot
-/// within 3 `sigma` (of the tower and the range) and, where its foot row lands on the ground, near it. A
-/// view that fits none, or two (towers one behind the other), is no one's.
+/// The one claiming tower a view can be of: its bearing passes the
+/// tower's foot within 3 `sigma` (given the tower and the range) and,
+/// where its foot row lands on the ground, near it. A view that fits none,
+/// or two (towers one behind the other), is no one's.
 fn owner(
     v: &TowerView,
     towers: &[TowerEstimate],
@@ -164,7 +165,7 @@ fn claims(t: &TowerEstimate, views: &[TowerView]) -> bool {
     t.sigma_horizontal_m() <= MERGE_M && longest_run_s(views) >= FOLLOWED_S
 }
 
-/// A tower some track followed this long, s: a cluster of a few short
+/// A tower seen this long without a break, s: a cluster of a few short
 /// tracks is clutter or the leftovers of other towers' tracks.
 pub const FOLLOWED_S: f64 = 3.0;
 /// Views further apart than this break a run.
