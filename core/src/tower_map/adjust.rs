@@ -12,17 +12,18 @@
 //! positions moved together) stays with the prior: the flight's mean GNSS
 //! error, which the covariance reports.
 //!
-//! Each view's ground line gives one equation, linear in the unknowns:
-//! `n . (foot - camera + gnss_error) + range * heading_error = 0`, with `n`
-//! the normal of its measured bearing. The system is solved by iteratively
-//! reweighted least squares (Huber), ranges refreshed each round.
+//! Each view gives one equation, its measured bearing against the bearing
+//! from its corrected camera to its tower, linearised about the current
+//! estimate: `n . (foot + gnss_error) + range * heading_error = n . (foot0 +
+//! gnss_error0) + range * (measured - predicted bearing)`, with `n` the
+//! unit normal of the predicted bearing. Gauss-Newton with Huber weights,
+//! a fixed number of rounds; each round's system is solved by `bordered`.
 
 use std::collections::BTreeMap;
 
 use nalgebra::{Matrix2, Matrix3, Point2, Rotation3, Vector2, Vector3};
 
 use super::bordered::Bordered;
-
 use super::triangulate::{TowerView, TriangulationParams};
 
 /// Seconds of flight that share one GNSS error and one heading error.
