@@ -60,6 +60,8 @@ pub struct MapRun {
     pub proposals: Vec<Option<LandmarkRecord>>,
     pub datum: Datum,
     pub score: Option<MapScore>,
+    /// The looseness past which a tower was reported as uncertain.
+    pub max_sigma_m: f64,
 }
 
 /// Proposals against the true towers (`--truth`).
@@ -258,6 +260,7 @@ pub fn map_towers(
         proposals,
         datum,
         score,
+        max_sigma_m: options.max_sigma_m,
     };
     write_outputs(&run, &options.out)?;
     Ok(run)
@@ -460,8 +463,9 @@ fn write_outputs(run: &MapRun, out: &Path) -> anyhow::Result<()> {
             foot.height_m,
             e.height_m.unwrap_or(0.0),
         );
-        r.notes = format!("placed to {major:.1} m only: fly past it from another side");
+        r.notes = t.doubt(run.max_sigma_m).unwrap_or_default();
         let mut extra = JsonObject::new();
+        extra.insert("followed_s".into(), t.followed_s.into());
         extra.insert("sigma_major_m".into(), major.into());
         extra.insert("sigma_minor_m".into(), minor.into());
         extra.insert("ellipse_bearing_deg".into(), bearing.into());

@@ -98,6 +98,12 @@ fn a_few_short_tracks_that_cross_make_no_tower() {
     let towers = mapper.finish(&TriangulationParams::default(), Some(0.0));
     let solid: Vec<_> = towers.iter().filter(|t| t.is_solid(3.0)).collect();
     assert_eq!(solid.len(), 1, "{towers:#?}");
+    let stray = towers
+        .iter()
+        .find(|t| !t.is_solid(3.0))
+        .expect("the stray cluster");
+    let doubt = stray.doubt(3.0).expect("a reason");
+    assert!(doubt.starts_with("seen for 0.4 s at most"), "{doubt}");
     assert!((solid[0].estimate.foot_in_world - foot).norm() < 0.5);
     assert_eq!(solid[0].estimate.views, 300);
     assert!(solid[0].followed_s >= 29.0);

@@ -31,7 +31,21 @@ impl MappedTower {
     /// Placed within `max_sigma_m` (one sigma), and seen long enough
     /// without a break to be a tower, not a few stray boxes that cross.
     pub fn is_solid(&self, max_sigma_m: f64) -> bool {
-        self.estimate.sigma_horizontal_m() <= max_sigma_m && self.followed_s >= FOLLOWED_S
+        self.doubt(max_sigma_m).is_none()
+    }
+
+    /// Why the tower is not solid, in words for the survey's report and
+    /// what to do about it; `None` where it is.
+    pub fn doubt(&self, max_sigma_m: f64) -> Option<String> {
+        if self.followed_s < FOLLOWED_S {
+            return Some(format!(
+                "seen for {:.1} s at most without a break: stray boxes, or a tower only glimpsed",
+                self.followed_s
+            ));
+        }
+        let sigma = self.estimate.sigma_horizontal_m();
+        (sigma > max_sigma_m)
+            .then(|| format!("placed to {sigma:.1} m only: fly past it from another side"))
     }
 }
 
