@@ -22,6 +22,7 @@
 use std::collections::BTreeMap;
 
 use nalgebra::{Matrix2, Matrix3, Point2, Rotation3, Vector2, Vector3};
+use towernav_geometry::wrap_angle;
 
 use super::bordered::Bordered;
 use super::triangulate::{TowerView, TriangulationParams};
@@ -116,12 +117,8 @@ impl Predicted {
     /// How far off the measured bearing is at the tower's range, metres,
     /// with the second's heading error taken out.
     fn miss(&self, l: &Line, heading: f64) -> f64 {
-        self.range * wrap(l.bearing - self.bearing - heading)
+        self.range * wrap_angle(l.bearing - self.bearing - heading)
     }
-}
-
-fn wrap(angle: f64) -> f64 {
-    (angle + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
 /// Adjusts the towers `views` shows (one list per tower), starting from

@@ -447,10 +447,18 @@ fn adjusted(
                 return None;
             }
             let moved: Vec<TowerView> = views.iter().map(|v| a.corrected(v)).collect();
-            let mut e = triangulate::measured_at(&moved, a.feet[j], a.covariances[j], p)?;
             let weights = &a.weights[j];
             let inliers = weights.iter().filter(|w| **w >= 1.0).count();
-            e.inlier_share = inliers as f64 / weights.len().max(1) as f64;
+            let inlier_share = inliers as f64 / weights.len().max(1) as f64;
+            // The spread of the views as first placed: regiving moves few.
+            let spread = towers[j].2.spread_rad;
+            let e = triangulate::measured_at(
+                &moved,
+                a.feet[j],
+                a.covariances[j],
+                (spread, inlier_share),
+                p,
+            )?;
             Some((views, e))
         })
         .collect()

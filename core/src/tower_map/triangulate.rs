@@ -174,18 +174,17 @@ pub fn triangulate(views: &[TowerView], p: &TriangulationParams) -> Option<Tower
     let position_samples = distinct_bins(times(), 2.0 * p.position_correlation_s);
     let covariance_en = info.try_inverse()? * bearing_share
         + Matrix2::identity() * p.position_sigma_m.powi(2) / position_samples;
-    let mut e = measured_at(views, at, covariance_en, p)?;
-    e.spread_rad = spread;
-    e.inlier_share = inlier_share;
-    Some(e)
+    measured_at(views, at, covariance_en, (spread, inlier_share), p)
 }
 
-/// The estimate of a tower whose foot is placed at `at` with `covariance_en`:
+/// The estimate of a tower whose foot is placed at `at` with `covariance_en`
+/// (its views' bearings spread and inlier share as the placing found them):
 /// its height and the foot's elevation from the views' top and foot rows.
 pub(crate) fn measured_at(
     views: &[TowerView],
     at: Point2<f64>,
     covariance_en: Matrix2<f64>,
+    (spread_rad, inlier_share): (f64, f64),
     p: &TriangulationParams,
 ) -> Option<TowerEstimate> {
     let (foot_z, height, spread_sigma, height_views) = heights(views, &at, p.bearing_correlation_s);
@@ -206,8 +205,8 @@ pub(crate) fn measured_at(
         height_sigma_m: height_sigma,
         views: views.len(),
         height_views,
-        spread_rad: bearing_spread(views.iter().filter_map(line).map(|l| l.2)),
-        inlier_share: 1.0,
+        spread_rad,
+        inlier_share,
     })
 }
 
@@ -284,12 +283,9 @@ fn heights(
     let near = ranges
         .get(ranges.len() / 10)
         .map_or(f64::INFINITY, |r| 2.0 * r);
-    for v in views {
+    for v in views.iter().filter(|v| !v.cut) {
         let foot = height_on_axis(&v.camera_in_world, &v.foot_ray, axis);
         let top = height_on_axis(&v.camera_in_world, &v.top_ray, axis);
-        if v.cut {
-            continue;
-        }
         if let (Some(f), Some(t), true) = (foot, top, range(v) <= near) {
             feet.push((f, weight(v)));
             heights.push((t - f, weight(v)));
