@@ -176,6 +176,31 @@ async fn linked(session: &Session) -> anyhow::Result<()> {
     }
 }
 
+/// Sends with `send` until `sub` hears something, then everything it hears
+/// until it falls quiet. A subscription takes a moment to reach a publisher
+/// (seconds through a router on a loaded machine), and a sample put before
+/// it arrives is gone: a pose stream or a change the ground station repeats
+/// survives that, a single put in a test does not.
+async fn until_heard(
+    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    mut send: impl AsyncFnMut() -> anyhow::Result<()>,
+) -> anyhow::Result<Vec<(String, Vec<u8>)>> {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(20);
+    loop {
+        send().await?;
+        let got = heard(sub, Duration::from_millis(300)).await;
+        if !got.is_empty() {
+            let mut all = got;
+            all.extend(heard(sub, QUIET).await);
+            return Ok(all);
+        }
+        anyhow::ensure!(
+            tokio::time::Instant::now() < deadline,
+            "nothing was heard in 20 s"
+        );
+    }
+}
+
 /// Everything `sub` hears within `within`, as (key, bytes).
 async fn heard(
     sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
@@ -201,11 +226,16 @@ async fn posing_as_another_uav(topology: Topology) -> anyhow::Result<()> {
         .declare_subscriber(keys().all_uavs_any_topic())
         .await
         .map_err(z)?;
-    tokio::time::sleep(Duration::from_millis(500)).await;
+    // Its own honest pose, until the ground station hears it: the route is up.
+    let own_pose = keys().uav(&id("uav-8"), Topic::Pose);
+    let honest = encode(&pose("uav-8", 60.0, 10.0, 1))?;
+    until_heard(&everything, async || {
+        rogue.put(&own_pose, honest.clone()).await.map_err(z)
+    })
+    .await?;
 
     // 1. A pose on its own key that names uav-7, 500 m off.
     let fake = pose("uav-7", 60.0045, 10.0, 1);
-    let own_pose = keys().uav(&id("uav-8"), Topic::Pose);
     rogue.put(&own_pose, encode(&fake)?).await.map_err(z)?;
     // 2. A refusal of a correction the ground station sent uav-7, on its own
     //    key, once naming uav-7 and once itself.
@@ -283,31 +313,35 @@ async fn a_revoked_or_superseded_certificate_never_comes_back() -> anyhow::Resul
         .declare_subscriber(keys().all_uavs(Topic::Pose))
         .await
         .map_err(z)?;
-    let mut sent = Vec::new();
+    let mut nodes = Vec::new();
     for (dir, name, uav) in [
-        (stolen.as_path(), "edge-8", "uav-8"),
-        (superseded.as_path(), "edge-7", "uav-7"),
-        (fleet.folder("edge-8").as_path(), "edge-8", "uav-8"),
+        (stolen, "edge-8", "uav-8"),
+        (superseded, "edge-7", "uav-7"),
+        (fleet.folder("edge-8"), "edge-8", "uav-8"),
     ] {
-        let session = net.join(dir, name).await?;
+        let session = net.join(&dir, name).await?;
         linked(&session).await?;
-        tokio::time::sleep(Duration::from_millis(300)).await;
         let what = format!("{} {uav}", dir.display());
-        session
-            .put(keys().uav(&id(uav), Topic::Pose), what.clone())
-            .await
-            .map_err(z)?;
-        sent.push((session, what));
+        nodes.push((session, keys().uav(&id(uav), Topic::Pose), what));
     }
-    let got: Vec<String> = heard(&poses, QUIET)
-        .await
+    // All three put until the ground station hears one, so the old ones'
+    // silence means refusal, not a route still on its way.
+    let got = until_heard(&poses, async || {
+        for (session, key, what) in &nodes {
+            session.put(key, what.clone()).await.map_err(z)?;
+        }
+        Ok(())
+    })
+    .await?;
+    let replacement = &nodes[2].2;
+    let strays: Vec<String> = got
         .into_iter()
         .map(|(_, b)| String::from_utf8_lossy(&b).into_owned())
+        .filter(|g| g != replacement)
         .collect();
-    assert_eq!(
-        got,
-        vec![sent[2].1.clone()],
-        "only the replacement is heard"
+    assert!(
+        strays.is_empty(),
+        "only the replacement is heard: {strays:?}"
     );
     Ok(())
 }
@@ -396,7 +430,6 @@ async fn reading_another_uav(topology: Topology) -> anyhow::Result<()> {
     }
     tokio::time::sleep(Duration::from_millis(800)).await;
 
-    edge.publish_pose(&pose("uav-7", 60.0, 10.0, 1)).await?;
     let correction = IdCorrection {
         uav: id("uav-7"),
         request_id: 5,
@@ -416,23 +449,23 @@ async fn reading_another_uav(topology: Topology) -> anyhow::Result<()> {
         revision: 3,
         change: LandmarkChangeOp::Remove { id: "A1".into() },
     };
-    gs.put(keys().landmark_changes(), encode(&change)?)
-        .await
-        .map_err(z)?;
 
     // The legitimate paths work...
     let got = tokio::time::timeout(Duration::from_secs(5), edge.next_correction()).await?;
     assert_eq!(got.request_id, 5, "{topology:?}");
-    assert_eq!(
-        heard(&poses, QUIET).await.len(),
-        1,
-        "{topology:?}: the pose is lost"
+    let sent = pose("uav-7", 60.0, 10.0, 1);
+    let got = until_heard(&poses, async || Ok(edge.publish_pose(&sent).await?)).await?;
+    assert!(
+        got.iter().all(|(key, _)| key.contains("uav-7")),
+        "{topology:?}: {got:?}"
     );
-    assert_eq!(
-        heard(&landmarks, QUIET).await.len(),
-        1,
-        "{topology:?}: no landmarks"
-    );
+    let got = until_heard(&landmarks, async || {
+        gs.put(keys().landmark_changes(), encode(&change)?)
+            .await
+            .map_err(z)
+    })
+    .await?;
+    assert!(!got.is_empty(), "{topology:?}: no landmarks");
     // ...and the other edge hears nothing of uav-7.
     let spied = heard(&spy, QUIET).await;
     assert!(spied.is_empty(), "{topology:?}: edge-8 read {spied:?}");
