@@ -13,14 +13,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use geojson::{Feature, FeatureCollection, Geometry, JsonObject, JsonValue};
-use nalgebra::Point2;
 use towernav_core::survey_labels::{LabelCamera, LabelParams, project_labels};
 use towernav_core::tower_map::{
     KnownTower, MappedTower, MatchParams, MatchReport, TowerMapper, TowerView, TriangulationParams,
     Verdict, match_towers,
 };
 use towernav_core::tracker::{SortParams, SortTracker, Tracker, TrackerInput};
-use towernav_geometry::{Datum, EDGE_MARGIN_PX};
+use towernav_geometry::Datum;
 use towernav_protocol::{LandmarkRecord, TowerType};
 
 use crate::daemon::config::EdgeConfig;
@@ -167,7 +166,6 @@ pub fn map_towers(
     let mut run_frames = 0;
     let mut without_pose = 0;
     let total = source.frame_count();
-    let (w, h) = (f64::from(width), f64::from(height));
     while let Some(frame) = source.next_frame() {
         let frame = frame?;
         run_frames += 1;
@@ -193,31 +191,17 @@ pub fn map_towers(
             .detect(image, frame.seq)
             .with_context(|| format!("the detector on frame {}", frame.seq))?;
         let world_from_camera = camera.world_from_camera(&pose);
-        let ray = |x: f64, y: f64| world_from_camera.rotation * camera.ray(&Point2::new(x, y));
         for track in tracker.step(&TrackerInput::new(frame.time_s, &detections)) {
             let b = track.bbox;
-            // A box the frame's side cuts, or one that overlaps another,
-            // has its centre off the tower's axis: its bearing would pull.
-            let side_cut = b.left <= EDGE_MARGIN_PX || b.right >= w - EDGE_MARGIN_PX;
+            // A box that overlaps another has its centre off the tower's
+            // axis: its bearing would pull.
             let overlaps = detections
                 .iter()
                 .any(|d| d.bbox != b && d.bbox.intersection_area(&b) > 0.0);
-            if side_cut || overlaps {
-                continue;
+            let view = TowerView::of_box(&camera, &world_from_camera, &b, frame.time_s);
+            if let (Some(view), false) = (view, overlaps) {
+                mapper.add(track.track_id, track.tower_type, view);
             }
-            let cx = (b.left + b.right) / 2.0;
-            mapper.add(
-                track.track_id,
-                track.tower_type,
-                TowerView {
-                    time_s: frame.time_s,
-                    camera_in_world: world_from_camera.translation.vector.into(),
-                    centre_ray: ray(cx, (b.top + b.bottom) / 2.0),
-                    top_ray: ray(cx, b.top),
-                    foot_ray: ray(cx, b.bottom),
-                    cut: b.top <= EDGE_MARGIN_PX || b.bottom >= h - EDGE_MARGIN_PX,
-                },
-            );
         }
     }
     // The ground, to find where a tracker swapped two towers: the known

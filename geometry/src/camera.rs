@@ -292,7 +292,7 @@ impl PinholeCamera {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use proptest::prelude::*;
 
@@ -389,7 +389,7 @@ mod tests {
 
     /// Lenses as calibration tools report them, at 1280x720: a strong
     /// barrel radial-tangential (a small UAV's wide lens) and a fisheye.
-    fn lenses() -> [PinholeCamera; 3] {
+    pub(crate) fn lenses() -> [PinholeCamera; 3] {
         let intrinsics = Intrinsics {
             width: 1280,
             height: 720,

@@ -17,6 +17,7 @@ pub mod image_edge;
 pub mod pixel_box;
 pub mod spatial;
 pub mod undistorted_view;
+pub mod vertical_plane;
 pub mod web_mercator;
 
 pub use calibration::{Calibration, CalibrationError};

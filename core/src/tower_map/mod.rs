@@ -7,6 +7,7 @@ pub mod adjust;
 mod bordered;
 pub mod matching;
 pub mod triangulate;
+mod view;
 
 use std::collections::BTreeMap;
 

@@ -13,7 +13,8 @@
 use nalgebra::{Matrix2, Point2, Point3, Vector2, Vector3};
 
 /// One view of one tower: the camera's centre and three rays (world frame,
-/// lens undone) through the box's centre, top-middle and foot-middle.
+/// lens undone) through the box's centre and where the tower's vertical
+/// plane crosses the box's top and bottom rows (`TowerView::of_box`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TowerView {
     pub time_s: f64,
@@ -21,8 +22,8 @@ pub struct TowerView {
     pub centre_ray: Vector3<f64>,
     pub top_ray: Vector3<f64>,
     pub foot_ray: Vector3<f64>,
-    /// The box touches the frame's top or bottom edge: its rows are not the
-    /// tower's top and foot.
+    /// The frame cuts the box's top or bottom: its rows are not the tower's
+    /// top and foot.
     pub cut: bool,
 }
 
