@@ -8,14 +8,16 @@
 //! solves, with the feet, the GNSS error of each second of flight and the
 //! heading error of each second, each a first-order Gauss-Markov process
 //! with the receiver's and the attitude's sigma and correlation time as its
-//! prior. What the views cannot tell apart (all towers and all camera
+//! prior, and one constant yaw of the camera against the attitude for the
+//! whole flight (its boresight). What the views cannot tell apart (all towers and all camera
 //! positions moved together) stays with the prior: the flight's mean GNSS
 //! error, which the covariance reports.
 //!
 //! Each view gives one equation, its measured bearing against the bearing
 //! from its corrected camera to its tower, linearised about the current
-//! estimate: `n . (foot + gnss_error) + range * heading_error = n . (foot0 +
-//! gnss_error0) + range * (measured - predicted bearing)`, with `n` the
+//! estimate: `n . (foot + gnss_error) + range * (heading_error + boresight)
+//! = n . (foot0 + gnss_error0) + range * (measured - predicted bearing)`,
+//! with `n` the
 //! unit normal of the predicted bearing. Gauss-Newton with Huber weights,
 //! a fixed number of rounds; each round's system is solved by `bordered`.
 
@@ -47,6 +49,8 @@ pub struct Adjustment {
     pub weights: Vec<Vec<f64>>,
     gnss: BTreeMap<i64, Vector2<f64>>,
     heading: BTreeMap<i64, f64>,
+    /// The camera's constant yaw against the attitude, rad.
+    pub boresight: f64,
 }
 
 impl Adjustment {
@@ -59,9 +63,10 @@ impl Adjustment {
             .unwrap_or_else(Vector2::zeros)
     }
 
-    /// The heading error solved for the second holding `time_s`, rad.
+    /// The heading error solved for the second holding `time_s`, with the
+    /// boresight, rad.
     pub fn heading_error(&self, time_s: f64) -> f64 {
-        self.heading.get(&bin(time_s)).copied().unwrap_or(0.0)
+        self.heading.get(&bin(time_s)).copied().unwrap_or(0.0) + self.boresight
     }
 
     /// `view` with its camera moved by the GNSS error and its rays turned
@@ -144,6 +149,7 @@ pub fn adjust(
     let mut feet = starts.to_vec();
     let mut gnss = vec![Vector2::zeros(); seconds.len()];
     let mut heading = vec![0.0; seconds.len()];
+    let mut boresight = 0.0;
     let mut weights: Vec<f64> = vec![1.0; lines.len()];
     let mut covariance = None;
     for round in 0..ROUNDS {
@@ -153,7 +159,7 @@ pub fn adjust(
             .collect();
         if round > 0 {
             for ((w, l), at) in weights.iter_mut().zip(&lines).zip(&predicted) {
-                let residual = at.miss(l, heading[l.second]) / line_sigma(at.range, p);
+                let residual = at.miss(l, heading[l.second] + boresight) / line_sigma(at.range, p);
                 *w = if residual.abs() <= p.huber_k {
                     1.0
                 } else {
@@ -174,6 +180,7 @@ pub fn adjust(
         for (j, f) in feet.iter_mut().enumerate() {
             *f = Point2::new(s.towers[2 * j], s.towers[2 * j + 1]);
         }
+        boresight = s.towers[2 * feet.len()];
         for (k, u) in s.seconds.iter().enumerate() {
             gnss[k] = u.xy();
             heading[k] = u.z;
@@ -194,6 +201,7 @@ pub fn adjust(
         weights: per_tower,
         gnss: seconds.iter().map(|(b, &k)| (*b, gnss[k])).collect(),
         heading: seconds.iter().map(|(b, &k)| (*b, heading[k])).collect(),
+        boresight,
     })
 }
 
@@ -227,7 +235,8 @@ fn lines(views: &[Vec<TowerView>], seconds: &BTreeMap<i64, usize>) -> Vec<Line> 
     lines
 }
 
-/// The normal equations: the views, then the Gauss-Markov priors.
+/// The normal equations: the views, then the priors. The border holds the
+/// feet, then the boresight.
 fn system(
     lines: &[Line],
     predicted: &[Predicted],
@@ -237,7 +246,10 @@ fn system(
     starts: &[Point2<f64>],
     (feet, gnss): (&[Point2<f64>], &[Vector2<f64>]),
 ) -> Bordered {
-    let mut a = Bordered::zeros(2 * starts.len(), seconds.len());
+    let bore = 2 * starts.len();
+    let mut a = Bordered::zeros(bore + 1, seconds.len());
+    // A mount held as calibrated (sigma 0) pins the boresight at zero.
+    a.tt[(bore, bore)] += 1.0 / p.boresight_sigma_rad.powi(2).max(1e-12);
     for (j, start) in starts.iter().enumerate() {
         let w = 1.0 / (START_SIGMA_M * START_SIGMA_M);
         for axis in 0..2 {
@@ -250,18 +262,20 @@ fn system(
         let w = w * l.share / (sigma * sigma);
         let n = at.normal;
         // range * (measured - predicted bearing), linear in the unknowns:
-        // n . (foot + gnss) + range * heading = n . (foot0 + gnss0) + miss.
+        // n . (foot + gnss) + range * (heading + boresight)
+        //   = n . (foot0 + gnss0) + miss.
         let u = Vector3::new(n.x, n.y, at.range);
         let (j, k) = (2 * l.tower, l.second);
         let rhs = n.dot(&(feet[l.tower].coords + gnss[k])) + at.miss(l, 0.0);
-        let tower_block = w * n * n.transpose();
-        for (row, col) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-            a.tt[(j + row, j + col)] += tower_block[(row, col)];
-        }
-        for row in 0..2 {
-            a.rhs_t[j + row] += w * n[row] * rhs;
-            for col in 0..3 {
-                a.tb[(j + row, 3 * k + col)] += w * n[row] * u[col];
+        // The border's row: the foot's two columns, then the boresight's.
+        let border = [(j, n.x), (j + 1, n.y), (bore, at.range)];
+        for (row, x) in border {
+            for (col, y) in border {
+                a.tt[(row, col)] += w * x * y;
+            }
+            a.rhs_t[row] += w * x * rhs;
+            for c in 0..3 {
+                a.tb[(row, 3 * k + c)] += w * x * u[c];
             }
         }
         a.diagonal[k] += w * u * u.transpose();

@@ -45,6 +45,12 @@ fn markov(rng: &mut ChaCha8Rng, n: usize, sigma: f64, correlation_s: f64) -> Vec
 /// 100, east at north -100), with a forward camera's 35 degree half field,
 /// as the log would give them: `errors` scales the pose errors (0: exact).
 fn survey(seed: u64, errors: f64) -> Vec<Vec<TowerView>> {
+    survey_turned(seed, errors, 0.0)
+}
+
+/// As `survey`, with every ray turned by a camera yawed `boresight` (rad)
+/// against the attitude.
+fn survey_turned(seed: u64, errors: f64, boresight: f64) -> Vec<Vec<TowerView>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let legs = [(0.0, 1.0), (100.0, -1.0), (-100.0, 1.0)];
     let per_leg = (700.0 / SPEED / FRAME_S) as usize;
@@ -62,7 +68,8 @@ fn survey(seed: u64, errors: f64) -> Vec<Vec<TowerView>> {
             let east = if dir > 0.0 { -50.0 } else { 650.0 } + dir * SPEED * i as f64 * FRAME_S;
             let camera = Point3::new(east, north, 60.0);
             let logged = camera + errors * Vector3::new(ge[k], gn[k], 0.0);
-            let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), errors * heading[k]);
+            let turn =
+                Rotation3::from_axis_angle(&Vector3::z_axis(), errors * heading[k] + boresight);
             for (t, foot) in towers().iter().enumerate() {
                 let to = foot - camera;
                 let off_axis = (to.y.atan2(to.x)
@@ -224,4 +231,28 @@ fn a_tower_seen_along_a_narrow_fan_is_not_pulled_towards_the_cameras() {
         adjusted.abs() < 0.3 * crossed.abs(),
         "adjusted {adjusted:.2} m, crossed {crossed:.2} m"
     );
+}
+
+/// A camera yawed 0.4 degrees on its mount turns every bearing of the
+/// flight: with the yaw free, passes both ways find it and put the towers
+/// back; held as calibrated (the default), it moves them by most of a metre.
+#[test]
+fn a_constant_camera_yaw_is_found_not_spread_over_the_towers() {
+    let yaw = 0.4_f64.to_radians();
+    let views = survey_turned(4, 0.0, yaw);
+    let starts: Vec<_> = towers().iter().map(|t| t.xy()).collect();
+    let free = TriangulationParams {
+        boresight_sigma_rad: 2_f64.to_radians(),
+        ..TriangulationParams::default()
+    };
+    let a = adjust(&views, &starts, &free).expect("solvable");
+    assert!(
+        (a.boresight - yaw).abs() < 0.01_f64.to_radians(),
+        "{}",
+        a.boresight.to_degrees()
+    );
+    assert!(rms(&a.feet) < 0.05, "{}", rms(&a.feet));
+    let held = adjust(&views, &starts, &TriangulationParams::default()).expect("solvable");
+    assert!(held.boresight.abs() < 1e-6);
+    assert!(rms(&held.feet) > 0.5, "{}", rms(&held.feet));
 }

@@ -437,6 +437,12 @@ fn adjusted(
     let Some(a) = adjust::adjust(&regrouped, &a.feet, p) else {
         return vec![None; towers.len()];
     };
+    if p.boresight_sigma_rad > 0.0 {
+        tracing::info!(
+            yaw_deg = format!("{:.2}", a.boresight.to_degrees()),
+            "the camera's yaw on its mount, solved from the towers"
+        );
+    }
     regrouped
         .into_iter()
         .enumerate()

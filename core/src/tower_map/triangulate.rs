@@ -42,6 +42,11 @@ pub struct TriangulationParams {
     pub position_correlation_s: f64,
     /// Heading errors closer in time than this are one error, s.
     pub bearing_correlation_s: f64,
+    /// One-sigma of the camera's constant yaw against the attitude (a
+    /// mount never calibrated), rad: one unknown for the whole flight,
+    /// which views of a tower from opposite sides pin down. 0 holds the
+    /// mount as calibrated: a free yaw costs a little where it is.
+    pub boresight_sigma_rad: f64,
     /// The views' bearings must spread this much, rad: parallel lines
     /// cross anywhere.
     pub min_spread_rad: f64,
@@ -61,6 +66,7 @@ impl Default for TriangulationParams {
             position_sigma_m: 1.5,
             position_correlation_s: 10.0,
             bearing_correlation_s: 3.0,
+            boresight_sigma_rad: 0.0,
             min_spread_rad: 10_f64.to_radians(),
             min_views: 5,
             huber_k: 2.0,

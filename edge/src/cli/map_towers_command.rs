@@ -32,6 +32,12 @@ pub struct MapTowersArgs {
     /// over 3 s); the box's own bearing error is 0.2 degrees.
     #[arg(long, default_value_t = 0.5)]
     bearing_sigma_deg: f64,
+    /// One-sigma yaw of the camera on its mount against the attitude,
+    /// degrees: 0 takes the calibration's mount as exact. Give 1-2 for a
+    /// mount never calibrated: the flight then solves one yaw for it from
+    /// towers seen from both sides (a lawnmower's passes both ways).
+    #[arg(long, default_value_t = 0.0)]
+    boresight_sigma_deg: f64,
     /// A tower needs this many views.
     #[arg(long, default_value_t = 5)]
     min_views: usize,
@@ -62,8 +68,9 @@ impl MapTowersArgs {
             self.gnss_sigma_m >= 0.0
                 && self.gnss_correlation_s >= 0.0
                 && self.bearing_sigma_deg > 0.0
+                && self.boresight_sigma_deg >= 0.0
                 && self.min_views >= 2,
-            "--gnss-sigma-m and --gnss-correlation-s must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
+            "--gnss-sigma-m, --gnss-correlation-s and --boresight-sigma-deg must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
         );
         let mut c = r.survey_config(self.log.as_ref())?;
         if let Some(m) = &self.model {
@@ -72,6 +79,7 @@ impl MapTowersArgs {
         let options = MapOptions {
             triangulation: TriangulationParams {
                 bearing_sigma_rad: self.bearing_sigma_deg.to_radians(),
+                boresight_sigma_rad: self.boresight_sigma_deg.to_radians(),
                 position_sigma_m: self.gnss_sigma_m,
                 position_correlation_s: self.gnss_correlation_s,
                 min_views: self.min_views,
