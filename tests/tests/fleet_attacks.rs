@@ -459,13 +459,17 @@ async fn reading_another_uav(topology: Topology) -> anyhow::Result<()> {
         got.iter().all(|(key, _)| key.contains("uav-7")),
         "{topology:?}: {got:?}"
     );
+    let change = encode(&change)?;
     let got = until_heard(&landmarks, async || {
-        gs.put(keys().landmark_changes(), encode(&change)?)
+        gs.put(keys().landmark_changes(), change.clone())
             .await
             .map_err(z)
     })
     .await?;
-    assert!(!got.is_empty(), "{topology:?}: no landmarks");
+    assert!(
+        got.iter().all(|(_, bytes)| *bytes == change),
+        "{topology:?}: the landmark change came back altered"
+    );
     // ...and the other edge hears nothing of uav-7.
     let spied = heard(&spy, QUIET).await;
     assert!(spied.is_empty(), "{topology:?}: edge-8 read {spied:?}");
