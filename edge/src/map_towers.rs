@@ -195,11 +195,13 @@ pub fn map_towers(
             let b = track.bbox;
             // A box that overlaps another has its centre off the tower's
             // axis: its bearing would pull.
-            let overlaps = detections
+            if detections
                 .iter()
-                .any(|d| d.bbox != b && d.bbox.intersection_area(&b) > 0.0);
-            let view = TowerView::of_box(&camera, &world_from_camera, &b, frame.time_s);
-            if let (Some(view), false) = (view, overlaps) {
+                .any(|d| d.bbox != b && d.bbox.intersection_area(&b) > 0.0)
+            {
+                continue;
+            }
+            if let Some(view) = TowerView::of_box(&camera, &world_from_camera, &b, frame.time_s) {
                 mapper.add(track.track_id, track.tower_type, view);
             }
         }

@@ -9,17 +9,17 @@
 //! heading error of each second, each a first-order Gauss-Markov process
 //! with the receiver's and the attitude's sigma and correlation time as its
 //! prior, and one constant yaw of the camera against the attitude for the
-//! whole flight (its boresight). What the views cannot tell apart (all towers and all camera
-//! positions moved together) stays with the prior: the flight's mean GNSS
-//! error, which the covariance reports.
+//! whole flight (its boresight). What the views cannot tell apart (all
+//! towers and all camera positions moved together) stays with the prior:
+//! the flight's mean GNSS error, which the covariance reports.
 //!
 //! Each view gives one equation, its measured bearing against the bearing
 //! from its corrected camera to its tower, linearised about the current
 //! estimate: `n . (foot + gnss_error) + range * (heading_error + boresight)
 //! = n . (foot0 + gnss_error0) + range * (measured - predicted bearing)`,
-//! with `n` the
-//! unit normal of the predicted bearing. Gauss-Newton with Huber weights,
-//! a fixed number of rounds; each round's system is solved by `bordered`.
+//! with `n` the unit normal of the predicted bearing. Gauss-Newton with
+//! Huber weights, a fixed number of rounds; each round's system is solved
+//! by `bordered`.
 
 use std::collections::BTreeMap;
 
