@@ -409,6 +409,28 @@ mod tests {
         );
     }
 
+    /// A forward camera sees a tower only on legs flown towards it, so a
+    /// survey that flies one way once more than the other sees one end of
+    /// the field on a single pass, along its lines.
+    #[test]
+    fn the_lawnmower_crosses_the_paper_field_as_often_east_as_west() {
+        let plan = FlightPlan::preset("lawnmower").expect("preset");
+        let world = crate::World::paper_field();
+        let easts = world.towers.iter().map(|t| t.foot_in_world.x);
+        let west_end = easts.clone().fold(f64::INFINITY, f64::min);
+        let east_end = easts.fold(f64::NEG_INFINITY, f64::max);
+        let (mut eastward, mut westward) = (0, 0);
+        for leg in plan.waypoints.windows(2) {
+            let (from, to) = (leg[0].east_m, leg[1].east_m);
+            if from < west_end && to > east_end {
+                eastward += 1;
+            } else if from > east_end && to < west_end {
+                westward += 1;
+            }
+        }
+        assert_eq!((eastward, westward), (2, 2));
+    }
+
     #[test]
     fn the_pass_along_a_line_flies_beside_every_tower() {
         let world = crate::World::random(4, &crate::world::WorldParams::default());
