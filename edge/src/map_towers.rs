@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use geojson::{Feature, FeatureCollection, Geometry, JsonObject, JsonValue};
 use towernav_core::survey_labels::{LabelCamera, LabelParams, project_labels};
+use towernav_core::tower_map::bearing_misses::BearingMisses;
 use towernav_core::tower_map::{
     KnownTower, MappedTower, MatchParams, MatchReport, TowerMapper, TowerView, TriangulationParams,
     Verdict, match_towers,
@@ -75,6 +76,8 @@ pub struct MapScore {
     pub height_rms_m: f64,
     /// Proposals farther than `SCORE_MATCH_M` from every true tower.
     pub phantoms: usize,
+    /// The views' bearings against the true towers, with the log's poses.
+    pub bearing_misses: Option<BearingMisses>,
 }
 
 /// A true tower seen whole in this many frames should be found.
@@ -88,6 +91,7 @@ fn score(
     proposals: &[Option<LandmarkRecord>],
     truth: &[LandmarkRecord],
     in_view: &[usize],
+    views: &[TowerView],
     datum: &Datum,
 ) -> MapScore {
     let place = |r: &LandmarkRecord| datum.to_enu(&r.foot()).xy();
@@ -127,6 +131,7 @@ fn score(
         position_max_m: max,
         height_rms_m: rms(hsq),
         phantoms,
+        bearing_misses: BearingMisses::of(views, &truth.iter().map(place).collect::<Vec<_>>()),
     }
 }
 
@@ -163,6 +168,8 @@ pub fn map_towers(
         .context("map-towers needs a detector model (not the oracle)")?;
     let mut tracker = SortTracker::new(SortParams::default());
     let mut mapper = TowerMapper::default();
+    // Every view, kept only to score against the truth.
+    let mut scored_views = Vec::new();
     let mut run_frames = 0;
     let mut without_pose = 0;
     let total = source.frame_count();
@@ -202,6 +209,9 @@ pub fn map_towers(
                 continue;
             }
             if let Some(view) = TowerView::of_box(&camera, &world_from_camera, &b, frame.time_s) {
+                if options.truth.is_some() {
+                    scored_views.push(view);
+                }
                 mapper.add(track.track_id, track.tower_type, view);
             }
         }
@@ -233,7 +243,7 @@ pub fn map_towers(
     let score = options
         .truth
         .is_some()
-        .then(|| score(&proposals, &truth, &truth_in_view, &datum));
+        .then(|| score(&proposals, &truth, &truth_in_view, &scored_views, &datum));
     let run = MapRun {
         frames: run_frames,
         without_pose,

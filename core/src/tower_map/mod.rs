@@ -4,6 +4,7 @@
 //! (`matching`). Pure: views in, estimates out.
 
 pub mod adjust;
+pub mod bearing_misses;
 mod bordered;
 pub mod matching;
 pub mod triangulate;

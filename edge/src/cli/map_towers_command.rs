@@ -29,7 +29,7 @@ pub struct MapTowersArgs {
     #[arg(long, default_value_t = 10.0)]
     gnss_correlation_s: f64,
     /// One-sigma heading error of the log's attitude, degrees (it wanders
-    /// over 3 s); the box's own bearing error is 0.2 degrees.
+    /// over 3 s); the box's own bearing error is 0.06 degrees.
     #[arg(long, default_value_t = 0.5)]
     bearing_sigma_deg: f64,
     /// One-sigma yaw of the camera on its mount against the attitude,
@@ -120,6 +120,16 @@ impl MapTowersArgs {
                 "against the truth: {}/{} towers seen in {SCORE_MIN_VIEWS}+ frames found (within {SCORE_MATCH_M} m), foot RMS {:.2} m (max {:.2}), height RMS {:.2} m, {} phantoms",
                 s.found, s.seen, s.position_rms_m, s.position_max_m, s.height_rms_m, s.phantoms
             );
+            if let Some(m) = &s.bearing_misses {
+                println!(
+                    "box bearings against the true towers, with the log's poses ({} views): robust 1-sigma {:.3} deg a view, {:.3} deg a tower's second, {:.3} deg within {} m",
+                    m.views,
+                    m.per_view.to_degrees(),
+                    m.per_tower_second.to_degrees(),
+                    m.near.to_degrees(),
+                    towernav_core::tower_map::bearing_misses::NEAR_M
+                );
+            }
         }
         println!(
             "wrote {0}/towers-mapped.csv, {0}/towers-mapped.geojson, {0}/report.csv",
