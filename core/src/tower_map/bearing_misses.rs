@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use nalgebra::Point2;
 use towernav_geometry::wrap_angle;
 
-use super::triangulate::TowerView;
+use super::triangulate::{TowerView, median};
 
 /// A ray is taken for a true tower's when it passes within this of its foot.
 const ON_TOWER_M: f64 = 5.0;
@@ -74,13 +74,9 @@ impl BearingMisses {
 }
 
 fn robust_sigma(values: &[f64]) -> Option<f64> {
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied()
-    };
-    let m = median(&mut values.to_vec())?;
-    let mut deviations: Vec<f64> = values.iter().map(|x| (x - m).abs()).collect();
-    Some(1.4826 * median(&mut deviations)?)
+    let m = median(values)?;
+    let deviations: Vec<f64> = values.iter().map(|x| (x - m).abs()).collect();
+    Some(1.4826 * median(&deviations)?)
 }
 
 #[cfg(test)]
