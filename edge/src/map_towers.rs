@@ -87,11 +87,11 @@ pub const SCORE_MATCH_M: f64 = 5.0;
 
 /// Scores the proposals against the true towers; `in_view` counts each true
 /// tower's frames seen whole.
-fn score(
+fn score<'a>(
     proposals: &[Option<LandmarkRecord>],
     truth: &[LandmarkRecord],
     in_view: &[usize],
-    views: &[TowerView],
+    views: impl Iterator<Item = &'a TowerView>,
     datum: &Datum,
 ) -> MapScore {
     let place = |r: &LandmarkRecord| datum.to_enu(&r.foot()).xy();
@@ -168,8 +168,6 @@ pub fn map_towers(
         .context("map-towers needs a detector model (not the oracle)")?;
     let mut tracker = SortTracker::new(SortParams::default());
     let mut mapper = TowerMapper::default();
-    // Every view, kept only to score against the truth.
-    let mut scored_views = Vec::new();
     let mut run_frames = 0;
     let mut without_pose = 0;
     let total = source.frame_count();
@@ -209,9 +207,6 @@ pub fn map_towers(
                 continue;
             }
             if let Some(view) = TowerView::of_box(&camera, &world_from_camera, &b, frame.time_s) {
-                if options.truth.is_some() {
-                    scored_views.push(view);
-                }
                 mapper.add(track.track_id, track.tower_type, view);
             }
         }
@@ -243,7 +238,7 @@ pub fn map_towers(
     let score = options
         .truth
         .is_some()
-        .then(|| score(&proposals, &truth, &truth_in_view, &scored_views, &datum));
+        .then(|| score(&proposals, &truth, &truth_in_view, mapper.views(), &datum));
     let run = MapRun {
         frames: run_frames,
         without_pose,

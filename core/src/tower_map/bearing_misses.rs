@@ -29,7 +29,10 @@ pub struct BearingMisses {
 
 impl BearingMisses {
     /// `None` where no view's ray passes near a true foot.
-    pub fn of(views: &[TowerView], feet: &[Point2<f64>]) -> Option<Self> {
+    pub fn of<'a>(
+        views: impl IntoIterator<Item = &'a TowerView>,
+        feet: &[Point2<f64>],
+    ) -> Option<Self> {
         let mut all = Vec::new();
         let mut near = Vec::new();
         let mut seconds: BTreeMap<(usize, i64), (f64, usize)> = BTreeMap::new();

@@ -223,6 +223,11 @@ impl TowerMapper {
         self.tracks.len()
     }
 
+    /// Every view added, track by track.
+    pub fn views(&self) -> impl Iterator<Item = &TowerView> {
+        self.tracks.values().flat_map(|(views, _)| views)
+    }
+
     /// Every track triangulated, cut first where it jumps between towers
     /// (with `ground_z`, the ground's height in the world frame, to place
     /// each view's foot); tracks of one tower (a tower passed twice, a track
