@@ -6,6 +6,7 @@
 pub mod adjust;
 pub mod bearing_misses;
 mod bordered;
+mod height_trend;
 pub mod matching;
 pub mod triangulate;
 mod view;

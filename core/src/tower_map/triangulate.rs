@@ -6,11 +6,14 @@
 //! (Huber, iteratively reweighted) least-squares crossing of those lines,
 //! each weighted by its range (a bearing error moves the line more far
 //! away) and the camera's position error. With the foot known, each uncut
-//! view's top and foot rays meet the tower's axis at a height; the median
+//! view's top and foot rays meet the tower's axis at a height: the median
 //! over the nearer views, weighted by the inverse square of the range, is
-//! the foot's elevation and the tower's height.
+//! the foot's elevation; the nearer views' heights against their range
+//! (`height_trend`) give the tower's height.
 
 use nalgebra::{Matrix2, Point2, Point3, Vector2, Vector3};
+
+use super::height_trend;
 
 /// One view of one tower: the camera's centre and three rays (world frame,
 /// lens undone) through the box's centre and where the tower's vertical
@@ -272,17 +275,18 @@ fn height_on_axis(c: &Point3<f64>, ray: &Vector3<f64>, axis: &Point2<f64>) -> Op
 }
 
 /// The foot's elevation (weighted median of the near uncut views' foot
-/// rows, of every view's where all are cut), the height (weighted median
-/// over the near uncut views), its one-sigma from the spread (1.4826
-/// weighted MAD over the square root of the stretches of `correlation_s`
-/// the views fall in, at least 0.1 m), and how many views gave a height.
+/// rows, of every view's where all are cut), the height (the near uncut
+/// views' against their range, `height_trend`), its one-sigma from the
+/// spread (1.4826 MAD over the square root of the stretches of
+/// `correlation_s` the views fall in, at least 0.1 m), and how many views
+/// gave a height.
 fn heights(
     views: &[TowerView],
     axis: &Point2<f64>,
     correlation_s: f64,
 ) -> (Option<f64>, Option<f64>, f64, usize) {
-    // (value, weight): a row's error grows with the range, so a view's
-    // weight falls with its square.
+    // Feet as (value, weight): a row's error grows with the range, so a
+    // view's weight falls with its square. Heights as (range, value).
     let mut feet = Vec::new();
     let mut heights = Vec::new();
     let mut times = Vec::new();
@@ -292,15 +296,14 @@ fn heights(
     // nearest tenth of the views measure the height.
     let mut ranges: Vec<f64> = views.iter().filter(|v| !v.cut).map(range).collect();
     ranges.sort_by(f64::total_cmp);
-    let near = ranges
-        .get(ranges.len() / 10)
-        .map_or(f64::INFINITY, |r| 2.0 * r);
+    let nearest = ranges.get(ranges.len() / 10).copied();
+    let near = nearest.map_or(f64::INFINITY, |r| 2.0 * r);
     for v in views.iter().filter(|v| !v.cut) {
         let foot = height_on_axis(&v.camera_in_world, &v.foot_ray, axis);
         let top = height_on_axis(&v.camera_in_world, &v.top_ray, axis);
         if let (Some(f), Some(t), true) = (foot, top, range(v) <= near) {
             feet.push((f, weight(v)));
-            heights.push((t - f, weight(v)));
+            heights.push((range(v), t - f));
             times.push(v.time_s);
         }
     }
@@ -317,18 +320,12 @@ fn heights(
             .collect();
     }
     let n = heights.len();
-    let height = weighted_median(&heights);
-    let sigma = match height {
-        None => f64::INFINITY,
-        Some(h) => {
-            let deviations: Vec<(f64, f64)> =
-                heights.iter().map(|(x, w)| ((x - h).abs(), *w)).collect();
-            let independent = distinct_bins(times.into_iter(), correlation_s);
-            let spread = weighted_median(&deviations).unwrap_or(0.0);
-            (1.4826 * spread / independent.sqrt()).max(0.1)
-        }
-    };
-    (weighted_median(&feet), height, sigma, n)
+    let trend = nearest.and_then(|at| height_trend::height_at(&heights, at));
+    let sigma = trend.map_or(f64::INFINITY, |(_, spread)| {
+        let independent = distinct_bins(times.into_iter(), correlation_s);
+        (spread / independent.sqrt()).max(0.1)
+    });
+    (weighted_median(&feet), trend.map(|(h, _)| h), sigma, n)
 }
 
 /// The value below which half the weight lies.
