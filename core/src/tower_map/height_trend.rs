@@ -7,19 +7,28 @@
 //! still takes the far end's shortfall where the nearest views are a few
 //! hundred metres off. So the heights get a robust line against range,
 //! read at the nearest views' range; where they do not fall with range
-//! (noise, or a top that holds) they get a robust level instead, since a
-//! rise is no loss to undo and reading it at the near end would only
-//! extrapolate noise.
+//! by more than their noise (a top that holds) they get a robust level
+//! instead, since a rise is no loss to undo and reading noise at the near
+//! end would only extrapolate it.
 
 /// Huber's threshold, in robust sigmas of the residuals.
 const HUBER_K: f64 = 1.5;
 const ROUNDS: usize = 10;
 
+/// A fall with range within this many of its standard errors is noise.
+const FALL_SE: f64 = 1.0;
+
 /// The height at range `at` from `(range, height)` samples, with the
-/// residuals' robust sigma (1.4826 MAD); `None` without samples.
-pub(crate) fn height_at(samples: &[(f64, f64)], at: f64) -> Option<(f64, f64)> {
+/// residuals' robust sigma (1.4826 MAD); `None` without samples. The
+/// samples' errors persist over time: they count as `independent` ones
+/// in the slope's standard error.
+pub(crate) fn height_at(samples: &[(f64, f64)], at: f64, independent: f64) -> Option<(f64, f64)> {
     let line = fit(samples, at, true)?;
-    let (level, slope, sigma) = if line.1 < 0.0 {
+    let n = samples.len() as f64;
+    let mean = samples.iter().map(|(r, _)| r).sum::<f64>() / n;
+    let spread = samples.iter().map(|(r, _)| (r - mean).powi(2)).sum::<f64>();
+    let slope_se = line.2 * (n / independent.max(1.0)).sqrt() / spread.sqrt().max(1e-9);
+    let (level, slope, sigma) = if line.1 < -FALL_SE * slope_se {
         line
     } else {
         fit(samples, at, false)?
@@ -88,7 +97,7 @@ mod tests {
     #[test]
     fn a_top_lost_with_range_is_read_where_the_views_are_nearest() {
         let samples = losing_top();
-        let (h, sigma) = height_at(&samples, 250.0).expect("a height");
+        let (h, sigma) = height_at(&samples, 250.0, 50.0).expect("a height");
         // 51.45 m at 250 m; the views' median is 50.1 m.
         assert!((h - 51.45).abs() < 0.15, "{h}");
         assert!(sigma < 0.5, "{sigma}");
@@ -99,10 +108,27 @@ mod tests {
         let samples: Vec<(f64, f64)> = (0..50)
             .map(|i| (200.0 + 4.0 * i as f64, 40.0 + 0.01 * i as f64 * 4.0))
             .collect();
-        let (h, _) = height_at(&samples, 200.0).expect("a height");
+        let (h, _) = height_at(&samples, 200.0, 50.0).expect("a height");
         // The level is the mean, 41.0 m; the rising line read at 200 m
         // would give 40.0 m.
         assert!((h - 41.0).abs() < 0.1, "{h}");
+    }
+
+    #[test]
+    fn a_fall_within_the_noise_of_few_independent_views_is_no_fall() {
+        // 0.4 m of fall over 200 m under +-0.5 m of noise.
+        let samples: Vec<(f64, f64)> = (0..50)
+            .map(|i| {
+                let r = 200.0 + 4.0 * i as f64;
+                (r, 40.0 - 0.002 * (r - 200.0) + 0.5 * (i as f64 * 2.3).sin())
+            })
+            .collect();
+        let mean = samples.iter().map(|(_, h)| h).sum::<f64>() / 50.0;
+        let (many, _) = height_at(&samples, 200.0, 50.0).expect("a height");
+        let (few, _) = height_at(&samples, 200.0, 3.0).expect("a height");
+        assert!((many - 40.0).abs() < 0.15, "{many}");
+        assert!((few - mean).abs() < 0.05, "{few} against {mean}");
+        assert!(many - few > 0.1, "{many} against {few}");
     }
 
     #[test]
@@ -111,8 +137,8 @@ mod tests {
             .map(|i| (300.0, 38.0 + 0.1 * (i % 3) as f64))
             .collect();
         samples.push((300.0, 90.0));
-        let (h, _) = height_at(&samples, 300.0).expect("a height");
+        let (h, _) = height_at(&samples, 300.0, 20.0).expect("a height");
         assert!((h - 38.1).abs() < 0.1, "{h}");
-        assert_eq!(height_at(&[], 300.0), None);
+        assert_eq!(height_at(&[], 300.0, 1.0), None);
     }
 }

@@ -320,9 +320,9 @@ fn heights(
             .collect();
     }
     let n = heights.len();
-    let trend = nearest.and_then(|at| height_trend::height_at(&heights, at));
+    let independent = distinct_bins(times.into_iter(), correlation_s);
+    let trend = nearest.and_then(|at| height_trend::height_at(&heights, at, independent));
     let sigma = trend.map_or(f64::INFINITY, |(_, spread)| {
-        let independent = distinct_bins(times.into_iter(), correlation_s);
         (spread / independent.sqrt()).max(0.1)
     });
     (weighted_median(&feet), trend.map(|(h, _)| h), sigma, n)
