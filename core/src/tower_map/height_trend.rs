@@ -18,23 +18,27 @@ const ROUNDS: usize = 10;
 /// A fall with range within this many of its standard errors is noise.
 const FALL_SE: f64 = 1.0;
 
-/// The height at range `at` from `(range, height)` samples, with the
-/// residuals' robust sigma (1.4826 MAD); `None` without samples. The
-/// samples' errors persist over time: they count as `independent` ones
-/// in the slope's standard error.
+/// The height at range `at` from `(range, height)` samples and its
+/// standard error; `None` without samples. The samples' errors persist
+/// over time: they count as `independent` ones.
 pub(crate) fn height_at(samples: &[(f64, f64)], at: f64, independent: f64) -> Option<(f64, f64)> {
     let line = fit(samples, at, true)?;
     let n = samples.len() as f64;
     let mean = samples.iter().map(|(r, _)| r).sum::<f64>() / n;
     let spread = samples.iter().map(|(r, _)| (r - mean).powi(2)).sum::<f64>();
-    let slope_se = line.2 * (n / independent.max(1.0)).sqrt() / spread.sqrt().max(1e-9);
-    let (level, slope, sigma) = if line.1 < -FALL_SE * slope_se {
-        line
+    // One sample's sigma, scaled so that n of them weigh as `independent`.
+    let each = |sigma: f64| sigma * (n / independent.clamp(1.0, n)).sqrt();
+    let slope_se = each(line.2) / spread.sqrt().max(1e-9);
+    if line.1 < -FALL_SE * slope_se {
+        // Read at `at`, away from the samples' mean range: the slope's
+        // error adds.
+        let x = mean - at;
+        let se = each(line.2) * (1.0 / n + x * x / spread.max(1e-9)).sqrt();
+        Some((line.0, se))
     } else {
-        fit(samples, at, false)?
-    };
-    debug_assert!(slope <= 0.0);
-    Some((level, sigma))
+        let (level, _, sigma) = fit(samples, at, false)?;
+        Some((level, each(sigma) / n.sqrt()))
+    }
 }
 
 /// Iteratively reweighted least squares of `height = level + slope (range
@@ -97,10 +101,11 @@ mod tests {
     #[test]
     fn a_top_lost_with_range_is_read_where_the_views_are_nearest() {
         let samples = losing_top();
-        let (h, sigma) = height_at(&samples, 250.0, 50.0).expect("a height");
+        let (h, se) = height_at(&samples, 250.0, 50.0).expect("a height");
         // 51.45 m at 250 m; the views' median is 50.1 m.
         assert!((h - 51.45).abs() < 0.15, "{h}");
-        assert!(sigma < 0.5, "{sigma}");
+        // The ripple's 0.2 m over 50 independent views, read at one end.
+        assert!(se > 0.02 && se < 0.1, "{se}");
     }
 
     #[test]

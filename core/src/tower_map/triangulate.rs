@@ -276,10 +276,9 @@ fn height_on_axis(c: &Point3<f64>, ray: &Vector3<f64>, axis: &Point2<f64>) -> Op
 
 /// The foot's elevation (weighted median of the near uncut views' foot
 /// rows, of every view's where all are cut), the height (the near uncut
-/// views' against their range, `height_trend`), its one-sigma from the
-/// spread (1.4826 MAD over the square root of the stretches of
-/// `correlation_s` the views fall in, at least 0.1 m), and how many views
-/// gave a height.
+/// views' against their range, `height_trend`), its one-sigma (that
+/// reading's standard error, the views counted once per stretch of
+/// `correlation_s`, at least 0.1 m), and how many views gave a height.
 fn heights(
     views: &[TowerView],
     axis: &Point2<f64>,
@@ -322,9 +321,7 @@ fn heights(
     let n = heights.len();
     let independent = distinct_bins(times.into_iter(), correlation_s);
     let trend = nearest.and_then(|at| height_trend::height_at(&heights, at, independent));
-    let sigma = trend.map_or(f64::INFINITY, |(_, spread)| {
-        (spread / independent.sqrt()).max(0.1)
-    });
+    let sigma = trend.map_or(f64::INFINITY, |(_, se)| se.max(0.1));
     (weighted_median(&feet), trend.map(|(h, _)| h), sigma, n)
 }
 
