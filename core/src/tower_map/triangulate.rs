@@ -274,11 +274,20 @@ fn height_on_axis(c: &Point3<f64>, ray: &Vector3<f64>, axis: &Point2<f64>) -> Op
     (along > 0.0).then(|| c.z + ray.z * along / hn)
 }
 
+/// What no number of views averages out of a tower's height, one sigma:
+/// the detector draws one tower's top and foot rows alike in every view.
+/// Without it the heights of ten rendered surveys (158 towers) missed by a
+/// median 1.03 of their sigma (0.67 for an honest one) and their 2-sigma
+/// intervals held 84 % of them; with it, 69 % lie within one sigma and
+/// 94 % within two.
+const TOWER_ROWS_SIGMA_M: f64 = 0.3;
+
 /// The foot's elevation (weighted median of the near uncut views' foot
 /// rows, of every view's where all are cut), the height (the near uncut
 /// views' against their range, `height_trend`), its one-sigma (that
 /// reading's standard error, the views counted once per stretch of
-/// `correlation_s`, at least 0.1 m), and how many views gave a height.
+/// `correlation_s`, and `TOWER_ROWS_SIGMA_M`), and how many views gave a
+/// height.
 fn heights(
     views: &[TowerView],
     axis: &Point2<f64>,
@@ -321,7 +330,7 @@ fn heights(
     let n = heights.len();
     let independent = distinct_bins(times.into_iter(), correlation_s);
     let trend = nearest.and_then(|at| height_trend::height_at(&heights, at, independent));
-    let sigma = trend.map_or(f64::INFINITY, |(_, se)| se.max(0.1));
+    let sigma = trend.map_or(f64::INFINITY, |(_, se)| se.hypot(TOWER_ROWS_SIGMA_M));
     (weighted_median(&feet), trend.map(|(h, _)| h), sigma, n)
 }
 

@@ -48,6 +48,9 @@ proptest! {
         let e = triangulate(&views, &TriangulationParams::default()).expect("an estimate");
         prop_assert!((e.foot_in_world - foot).norm() < 1e-6, "{:?}", e.foot_in_world);
         prop_assert!((e.height_m.expect("height") - height).abs() < 1e-6);
+        // However many views agree, the detector's rows on one tower do not
+        // average out.
+        prop_assert!(e.height_sigma_m >= TOWER_ROWS_SIGMA_M, "{}", e.height_sigma_m);
         prop_assert_eq!(e.views, n);
         // The far end of the pass (beyond twice the nearest views' range)
         // gives no height.
