@@ -36,11 +36,23 @@ const ROUNDS: usize = 8;
 /// at all, only there so that a tower without views leaves the system
 /// solvable.
 const START_SIGMA_M: f64 = 1e4;
+/// An anchor is never held tighter than this: a record claiming a
+/// millimetre would make the normal equations stiff for nothing.
+const MIN_ANCHOR_SIGMA_M: f64 = 0.01;
 /// A view's line is never trusted closer than this: within 150 m the box's
 /// centre leaves the axis of a 6-9 m wide lattice tower by 0.2 degrees
 /// (one sigma, measured on a rendered survey with exact poses), about
 /// 0.4 m at the range where most near views are.
 pub const MIN_LINE_SIGMA_M: f64 = 0.4;
+
+/// A tower whose place is known independently of the flight (a surveyed
+/// record): the adjustment holds its foot there to `sigma_m`, which takes
+/// out the flight's mean GNSS error that the views alone cannot see.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Anchor {
+    pub foot: Point2<f64>,
+    pub sigma_m: f64,
+}
 
 /// The feet, their covariances and the camera's position error over time.
 #[derive(Debug, Clone)]
@@ -130,7 +142,8 @@ impl Predicted {
 }
 
 /// Adjusts the towers `views` shows (one list per tower), starting from
-/// `starts`; `None` where the system is singular.
+/// `starts`, each held to its anchor where `anchors` (empty, or one entry
+/// per tower) has one; `None` where the system is singular.
 ///
 /// Gauss-Newton on the bearings themselves, each linearised about the
 /// current estimate: the lines' normals are the predicted bearings', not
@@ -139,6 +152,7 @@ impl Predicted {
 pub fn adjust(
     views: &[Vec<TowerView>],
     starts: &[Point2<f64>],
+    anchors: &[Option<Anchor>],
     p: &TriangulationParams,
 ) -> Option<Adjustment> {
     let mut seconds = BTreeMap::new();
@@ -176,7 +190,7 @@ pub fn adjust(
             &weights,
             &seconds,
             p,
-            starts,
+            (starts, anchors),
             (&feet, &gnss),
         )
         .solve()?;
@@ -246,7 +260,7 @@ fn system(
     weights: &[f64],
     seconds: &BTreeMap<i64, usize>,
     p: &TriangulationParams,
-    starts: &[Point2<f64>],
+    (starts, anchors): (&[Point2<f64>], &[Option<Anchor>]),
     (feet, gnss): (&[Point2<f64>], &[Vector2<f64>]),
 ) -> Bordered {
     let bore = 2 * starts.len();
@@ -254,10 +268,14 @@ fn system(
     // A mount held as calibrated (sigma 0) pins the boresight at zero.
     a.tt[(bore, bore)] += 1.0 / p.boresight_sigma_rad.powi(2).max(1e-12);
     for (j, start) in starts.iter().enumerate() {
-        let w = 1.0 / (START_SIGMA_M * START_SIGMA_M);
+        let (at, sigma) = match anchors.get(j).copied().flatten() {
+            Some(anchor) => (anchor.foot, anchor.sigma_m.max(MIN_ANCHOR_SIGMA_M)),
+            None => (*start, START_SIGMA_M),
+        };
+        let w = 1.0 / (sigma * sigma);
         for axis in 0..2 {
             a.tt[(2 * j + axis, 2 * j + axis)] += w;
-            a.rhs_t[2 * j + axis] += w * start[axis];
+            a.rhs_t[2 * j + axis] += w * at[axis];
         }
     }
     for ((l, at), w) in lines.iter().zip(predicted).zip(weights) {

@@ -95,7 +95,7 @@ fn a_few_short_tracks_that_cross_make_no_tower() {
             );
         }
     }
-    let towers = mapper.finish(&TriangulationParams::default(), Some(0.0));
+    let towers = mapper.finish(&TriangulationParams::default(), Some(0.0), &[]);
     let solid: Vec<_> = towers.iter().filter(|t| t.is_solid(3.0)).collect();
     assert_eq!(solid.len(), 1, "{towers:#?}");
     let stray = towers
@@ -107,4 +107,29 @@ fn a_few_short_tracks_that_cross_make_no_tower() {
     assert!((solid[0].estimate.foot_in_world - foot).norm() < 0.5);
     assert_eq!(solid[0].estimate.views, 300);
     assert!(solid[0].followed_s >= 29.0);
+}
+
+#[test]
+fn a_surveyed_record_anchors_the_tower_it_fits_and_one_the_flight_contradicts_anchors_nothing() {
+    let feet = [Point2::new(0.0, 0.0), Point2::new(200.0, 0.0)];
+    // Placed to 0.5 m, the flight's shared error included.
+    let covariances = [nalgebra::Matrix2::identity() * 0.25; 2];
+    let anchors = [
+        Anchor {
+            foot: Point2::new(0.8, -0.6),
+            sigma_m: 0.1,
+        },
+        // 6 m off while claiming 10 cm: a record moved by a typing slip.
+        Anchor {
+            foot: Point2::new(206.0, 0.0),
+            sigma_m: 0.1,
+        },
+        // A second record on the first tower, further off: the nearer wins.
+        Anchor {
+            foot: Point2::new(1.2, 0.5),
+            sigma_m: 0.1,
+        },
+    ];
+    let held = anchored(&feet, &covariances, &anchors);
+    assert_eq!(held, vec![Some(anchors[0]), None]);
 }

@@ -15,6 +15,7 @@ use std::collections::BTreeMap;
 
 use towernav_protocol::TowerType;
 
+pub use adjust::Anchor;
 pub use matching::{KnownTower, MatchParams, MatchReport, Verdict, match_towers};
 pub use triangulate::{TowerEstimate, TowerView, TriangulationParams, triangulate};
 
@@ -28,6 +29,9 @@ pub struct MappedTower {
     pub track_ids: Vec<u64>,
     /// The longest stretch of flight it was seen in without a break, s.
     pub followed_s: f64,
+    /// Held to a surveyed record (`Anchor`): its place is the record's, a
+    /// reference for the others, not a measurement.
+    pub anchored: bool,
 }
 
 impl MappedTower {
@@ -75,6 +79,8 @@ const MERGE_M: f64 = 5.0;
 const SWITCH_M: f64 = 15.0;
 const SWITCH_SHARE: f64 = 0.15;
 const SWITCH_VIEWS: usize = 3;
+/// A surveyed record anchors the tower it lies within this many sigmas of.
+const ANCHOR_GATE_SIGMAS: f64 = 3.0;
 
 impl TowerView {
     /// Where the foot's ray meets level ground at `ground_z`; `None` for a
@@ -233,8 +239,14 @@ impl TowerMapper {
     /// (with `ground_z`, the ground's height in the world frame, to place
     /// each view's foot); tracks of one tower (a tower passed twice, a track
     /// lost and found again) merged and triangulated together; then all the
-    /// towers adjusted at once with the flight's pose errors (`adjust`).
-    pub fn finish(&self, p: &TriangulationParams, ground_z: Option<f64>) -> Vec<MappedTower> {
+    /// towers adjusted at once with the flight's pose errors (`adjust`),
+    /// each held to the one `anchors` entry it fits, if any.
+    pub fn finish(
+        &self,
+        p: &TriangulationParams,
+        ground_z: Option<f64>,
+        anchors: &[Anchor],
+    ) -> Vec<MappedTower> {
         let mut pieces: Vec<(u64, Vec<TowerView>)> = Vec::new();
         for (id, (views, _)) in &self.tracks {
             match ground_z {
@@ -301,12 +313,12 @@ impl TowerMapper {
                 (ids, views, estimate)
             })
             .collect();
-        let adjusted = adjusted(&towers, p, ground_z);
+        let adjusted = adjusted(&towers, p, ground_z, anchors);
         towers
             .into_iter()
             .zip(adjusted)
             .map(|((ids, views, estimate), better)| {
-                let (views, estimate) = better.unwrap_or((views, estimate));
+                let (views, estimate, anchored) = better.unwrap_or((views, estimate, false));
                 let mut types: BTreeMap<TowerType, usize> = BTreeMap::new();
                 for id in &ids {
                     for (t, n) in &self.tracks[id].1 {
@@ -319,6 +331,7 @@ impl TowerMapper {
                     tower_type,
                     track_ids: ids,
                     followed_s: longest_run_s(&views),
+                    anchored,
                 }
             })
             .collect()
@@ -415,15 +428,17 @@ fn merge_duplicates(
 /// (the camera moved by the solved GNSS error, the bearing turned by the
 /// solved heading error: far tighter than the pose's own errors), and the
 /// towers adjusted again. Each view's camera is corrected before the
-/// heights are measured. `None` for a tower left as it was.
+/// heights are measured. `None` for a tower left as it was; `true` beside
+/// a tower held to an anchor.
 fn adjusted(
     towers: &[(Vec<u64>, Vec<TowerView>, TowerEstimate)],
     p: &TriangulationParams,
     ground_z: Option<f64>,
-) -> Vec<Option<(Vec<TowerView>, TowerEstimate)>> {
+    anchors: &[Anchor],
+) -> Vec<Option<(Vec<TowerView>, TowerEstimate, bool)>> {
     let views: Vec<Vec<TowerView>> = towers.iter().map(|t| t.1.clone()).collect();
     let starts: Vec<_> = towers.iter().map(|t| t.2.foot_in_world.xy()).collect();
-    let Some(a) = adjust::adjust(&views, &starts, p) else {
+    let Some(a) = adjust::adjust(&views, &starts, &[], p) else {
         return vec![None; towers.len()];
     };
     let placed: Vec<TowerEstimate> = towers
@@ -441,9 +456,23 @@ fn adjusted(
             .hypot(adjust::MIN_LINE_SIGMA_M)
     };
     let regrouped = reown(&views, &placed, |v| a.corrected(v), sigma, ground_z);
-    let Some(a) = adjust::adjust(&regrouped, &a.feet, p) else {
+    let held = anchored(&a.feet, &a.covariances, anchors);
+    let Some(a) = adjust::adjust(&regrouped, &a.feet, &held, p) else {
         return vec![None; towers.len()];
     };
+    if held.iter().any(Option::is_some) {
+        let moved = held
+            .iter()
+            .zip(&a.feet)
+            .filter_map(|(h, f)| h.map(|h| (h.foot - f).norm()))
+            .fold(0.0f64, f64::max);
+        tracing::info!(
+            anchors = held.iter().flatten().count(),
+            of = anchors.len(),
+            worst_left_m = format!("{moved:.2}"),
+            "towers held to their surveyed places"
+        );
+    }
     if p.boresight_sigma_rad > 0.0 {
         tracing::info!(
             yaw_deg = format!("{:.2}", a.boresight.to_degrees()),
@@ -473,9 +502,40 @@ fn adjusted(
                 (spread, inlier_share),
                 p,
             )?;
-            Some((views, e))
+            Some((views, e, held[j].is_some()))
         })
         .collect()
+}
+
+/// Each anchor given to the nearest tower whose placing, with the flight's
+/// shared GNSS error in its ellipse, holds it within three sigmas of the
+/// two together (one anchor per tower, the nearer kept). A surveyed record
+/// that the flight contradicts anchors nothing: it could only pull.
+fn anchored(
+    feet: &[nalgebra::Point2<f64>],
+    covariances: &[nalgebra::Matrix2<f64>],
+    anchors: &[Anchor],
+) -> Vec<Option<Anchor>> {
+    let mut held: Vec<Option<(Anchor, f64)>> = vec![None; feet.len()];
+    for anchor in anchors {
+        let fit = feet
+            .iter()
+            .zip(covariances)
+            .enumerate()
+            .filter_map(|(j, (f, c))| {
+                let d = anchor.foot - f;
+                let cov = c + nalgebra::Matrix2::identity() * anchor.sigma_m.powi(2);
+                let m2 = (d.transpose() * cov.try_inverse()? * d)[0];
+                (m2 <= ANCHOR_GATE_SIGMAS.powi(2)).then_some((j, d.norm()))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((j, d)) = fit
+            && held[j].is_none_or(|(_, kept)| d < kept)
+        {
+            held[j] = Some((*anchor, d));
+        }
+    }
+    held.into_iter().map(|h| h.map(|(a, _)| a)).collect()
 }
 
 #[cfg(test)]
