@@ -16,8 +16,8 @@ use geojson::{Feature, FeatureCollection, Geometry, JsonObject, JsonValue};
 use towernav_core::survey_labels::{LabelCamera, LabelParams, project_labels};
 use towernav_core::tower_map::bearing_misses::BearingMisses;
 use towernav_core::tower_map::{
-    KnownTower, MappedTower, MatchParams, MatchReport, TowerMapper, TowerView, TriangulationParams,
-    Verdict, match_towers,
+    Anchor, KnownTower, MappedTower, MatchParams, MatchReport, TowerMapper, TowerView,
+    TriangulationParams, Verdict, match_towers,
 };
 use towernav_core::tracker::{SortParams, SortTracker, Tracker, TrackerInput};
 use towernav_geometry::Datum;
@@ -36,6 +36,9 @@ pub struct MapOptions {
     /// semi-axis) is reported as uncertain, not proposed.
     pub max_sigma_m: f64,
     pub matching: MatchParams,
+    /// Known towers whose record states a horizontal sigma this small or
+    /// smaller anchor the survey (`Anchor`); 0 anchors none.
+    pub anchor_sigma_m: f64,
     /// The true towers of a rendered flight, to score the proposals against.
     pub truth: Option<PathBuf>,
     pub out: PathBuf,
@@ -76,6 +79,9 @@ pub struct MapScore {
     pub height_rms_m: f64,
     /// Proposals farther than `SCORE_MATCH_M` from every true tower.
     pub phantoms: usize,
+    /// Proposals held to a surveyed record: found, but left out of the
+    /// position figures (their place is the record's).
+    pub anchored: usize,
     /// The views' bearings against the true towers, with the log's poses.
     pub bearing_misses: Option<BearingMisses>,
 }
@@ -89,6 +95,7 @@ pub const SCORE_MATCH_M: f64 = 5.0;
 /// tower's frames seen whole.
 fn score<'a>(
     proposals: &[Option<LandmarkRecord>],
+    anchored: &[bool],
     truth: &[LandmarkRecord],
     in_view: &[usize],
     views: impl Iterator<Item = &'a TowerView>,
@@ -97,7 +104,9 @@ fn score<'a>(
     let place = |r: &LandmarkRecord| datum.to_enu(&r.foot()).xy();
     let mut found = vec![false; truth.len()];
     let (mut sq, mut max, mut hsq, mut n, mut phantoms) = (0.0, 0.0f64, 0.0, 0, 0);
-    for p in proposals.iter().flatten() {
+    let (mut placed, mut held) = (0, 0);
+    for (p, &anchor) in proposals.iter().zip(anchored) {
+        let Some(p) = p else { continue };
         let nearest = truth
             .iter()
             .enumerate()
@@ -106,8 +115,13 @@ fn score<'a>(
         match nearest {
             Some((k, d)) if d <= SCORE_MATCH_M => {
                 found[k] = true;
-                sq += d * d;
-                max = max.max(d);
+                if anchor {
+                    held += 1;
+                } else {
+                    sq += d * d;
+                    max = max.max(d);
+                    placed += 1;
+                }
                 hsq += (p.height_m - truth[k].height_m).powi(2);
                 n += 1;
             }
@@ -117,7 +131,7 @@ fn score<'a>(
     let seen: Vec<usize> = (0..truth.len())
         .filter(|&k| in_view[k] >= SCORE_MIN_VIEWS)
         .collect();
-    let rms = |s: f64| {
+    let rms = |s: f64, n: usize| {
         if n == 0 {
             f64::NAN
         } else {
@@ -127,10 +141,11 @@ fn score<'a>(
     MapScore {
         seen: seen.len(),
         found: seen.iter().filter(|&&k| found[k]).count(),
-        position_rms_m: rms(sq),
+        position_rms_m: rms(sq, placed),
         position_max_m: max,
-        height_rms_m: rms(hsq),
+        height_rms_m: rms(hsq, n),
         phantoms,
+        anchored: held,
         bearing_misses: BearingMisses::of(views, &truth.iter().map(place).collect::<Vec<_>>()),
     }
 }
@@ -216,8 +231,19 @@ pub fn map_towers(
     let ground_z = towernav_core::tower_map::triangulate::median(
         &survey.iter().map(|t| t.foot_in_world.z).collect::<Vec<_>>(),
     );
+    let anchors: Vec<Anchor> = known
+        .iter()
+        .zip(&survey)
+        .filter_map(|(r, s)| {
+            let sigma_m = r.sigma_horizontal_m.filter(|s| *s > 0.0)?;
+            (sigma_m <= options.anchor_sigma_m).then(|| Anchor {
+                foot: s.foot_in_world.xy(),
+                sigma_m,
+            })
+        })
+        .collect();
     let (towers, uncertain): (Vec<_>, Vec<_>) = mapper
-        .finish(&options.triangulation, ground_z)
+        .finish(&options.triangulation, ground_z, &anchors)
         .into_iter()
         .partition(|t| t.is_solid(options.max_sigma_m));
     let known_in_world: Vec<KnownTower> = known
@@ -235,10 +261,17 @@ pub fn map_towers(
     let estimates: Vec<_> = towers.iter().map(|t| t.estimate.clone()).collect();
     let report = match_towers(&estimates, &known_in_world, &options.matching);
     let proposals = proposals(&towers, &report, &known, &datum);
-    let score = options
-        .truth
-        .is_some()
-        .then(|| score(&proposals, &truth, &truth_in_view, mapper.views(), &datum));
+    let score = options.truth.is_some().then(|| {
+        let anchored: Vec<bool> = towers.iter().map(|t| t.anchored).collect();
+        score(
+            &proposals,
+            &anchored,
+            &truth,
+            &truth_in_view,
+            mapper.views(),
+            &datum,
+        )
+    });
     let run = MapRun {
         frames: run_frames,
         without_pose,
@@ -304,12 +337,18 @@ fn proposals(
                     r
                 }
             };
-            r.lat_deg = foot.lat_deg;
-            r.lon_deg = foot.lon_deg;
-            r.ground_elev_m = foot.height_m;
+            // An anchored tower's place is its record's: the survey's, which
+            // the flight was held to, not a measurement of its own.
+            if t.anchored {
+                r.notes = format!("{}; the surveyed place anchored the flight", r.notes);
+            } else {
+                r.lat_deg = foot.lat_deg;
+                r.lon_deg = foot.lon_deg;
+                r.ground_elev_m = foot.height_m;
+                r.sigma_horizontal_m = Some(e.sigma_horizontal_m());
+            }
             r.height_m = height;
             r.survey_source = Some("towernav-edge map-towers".into());
-            r.sigma_horizontal_m = Some(e.sigma_horizontal_m());
             r.sigma_vertical_m = Some(e.height_sigma_m);
             r.notes = format!(
                 "{}; {} views, {} with height",
@@ -417,6 +456,7 @@ fn write_outputs(run: &MapRun, out: &Path) -> anyhow::Result<()> {
         extra.insert("ellipse_bearing_deg".into(), bearing.into());
         extra.insert("views".into(), e.views.into());
         extra.insert("height_views".into(), e.height_views.into());
+        extra.insert("anchored".into(), t.anchored.into());
         if let Some(o) = offset {
             extra.insert("known_id".into(), known_id.clone().into());
             extra.insert("offset_east_m".into(), o.x.into());
@@ -496,4 +536,93 @@ fn write_outputs(run: &MapRun, out: &Path) -> anyhow::Result<()> {
     std::fs::write(&report_path, report)
         .with_context(|| format!("writing {}", report_path.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Matrix2, Point3, Vector2};
+    use towernav_core::tower_map::TowerEstimate;
+    use towernav_geometry::Geodetic;
+
+    use super::*;
+
+    fn mapped(foot: Point3<f64>, anchored: bool) -> MappedTower {
+        MappedTower {
+            estimate: TowerEstimate {
+                foot_in_world: foot,
+                covariance_en: Matrix2::identity() * 0.25,
+                height_m: Some(41.0),
+                height_sigma_m: 0.4,
+                views: 300,
+                height_views: 250,
+                spread_rad: 0.3,
+                inlier_share: 1.0,
+            },
+            tower_type: Some(TowerType::B),
+            track_ids: vec![1],
+            followed_s: 20.0,
+            anchored,
+        }
+    }
+
+    #[test]
+    fn an_anchored_tower_keeps_its_surveyed_place_and_is_not_scored_as_measured() {
+        let datum = Datum::new(Geodetic::new(30.52, 114.36, 25.0).expect("valid"));
+        let at = |e: f64, n: f64| datum.to_geodetic(&Point3::new(e, n, 0.0));
+        let record = |id: &str, e: f64, n: f64, sigma: Option<f64>| {
+            let g = at(e, n);
+            let mut r =
+                LandmarkRecord::new(id, TowerType::B, g.lat_deg, g.lon_deg, g.height_m, 40.0);
+            r.sigma_horizontal_m = sigma;
+            r
+        };
+        // B1 surveyed to 10 cm, the flight 3 cm from it; B2 from a map.
+        let known = vec![
+            record("B1", 0.0, 0.0, Some(0.1)),
+            record("B2", 200.0, 0.0, None),
+        ];
+        let towers = vec![
+            mapped(Point3::new(0.03, 0.0, 0.0), true),
+            mapped(Point3::new(203.0, 1.0, 0.0), false),
+        ];
+        let confirms = |known, offset_en| Verdict::Confirms {
+            known,
+            offset_en,
+            height_difference_m: Some(1.0),
+        };
+        let report = MatchReport {
+            verdicts: vec![
+                confirms(0, Vector2::new(0.03, 0.0)),
+                confirms(1, Vector2::new(3.0, 1.0)),
+            ],
+            missed: vec![],
+            not_seen: vec![],
+        };
+        let proposals = proposals(&towers, &report, &known, &datum);
+        let b1 = proposals[0].as_ref().expect("B1 proposed");
+        assert_eq!(
+            (b1.lat_deg, b1.lon_deg, b1.sigma_horizontal_m),
+            (known[0].lat_deg, known[0].lon_deg, Some(0.1))
+        );
+        assert_eq!(b1.height_m, 41.0, "the height is still the flight's");
+        let b2 = proposals[1].as_ref().expect("B2 proposed");
+        assert!(
+            (b2.lon_deg - known[1].lon_deg).abs() > 1e-5,
+            "B2 moves to where it was measured"
+        );
+
+        // Against the truth (where the records are), B1 is found but only
+        // B2's 3.2 m is a measured place.
+        let truth = known.clone();
+        let s = score(
+            &proposals,
+            &[true, false],
+            &truth,
+            &[50, 50],
+            std::iter::empty(),
+            &datum,
+        );
+        assert_eq!((s.found, s.anchored), (2, 1));
+        assert!((s.position_rms_m - 10f64.sqrt()).abs() < 0.05, "{s:?}");
+    }
 }

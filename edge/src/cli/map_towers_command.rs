@@ -38,6 +38,12 @@ pub struct MapTowersArgs {
     /// towers seen from both sides (a lawnmower's passes both ways).
     #[arg(long, default_value_t = 0.0)]
     boresight_sigma_deg: f64,
+    /// Known towers whose record states a horizontal sigma of at most this
+    /// (metres; a crew's surveyed towers) hold the survey to their places:
+    /// the flight's shared GNSS error, which its views cannot see, comes
+    /// out against them. 0: none.
+    #[arg(long, default_value_t = 1.0)]
+    anchor_sigma_m: f64,
     /// A tower needs this many views.
     #[arg(long, default_value_t = 5)]
     min_views: usize,
@@ -69,8 +75,9 @@ impl MapTowersArgs {
                 && self.gnss_correlation_s >= 0.0
                 && self.bearing_sigma_deg > 0.0
                 && self.boresight_sigma_deg >= 0.0
+                && self.anchor_sigma_m >= 0.0
                 && self.min_views >= 2,
-            "--gnss-sigma-m, --gnss-correlation-s and --boresight-sigma-deg must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
+            "--gnss-sigma-m, --gnss-correlation-s, --boresight-sigma-deg and --anchor-sigma-m must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
         );
         let mut c = r.survey_config(self.log.as_ref())?;
         if let Some(m) = &self.model {
@@ -88,6 +95,7 @@ impl MapTowersArgs {
             max_sigma_m: self.max_sigma_m,
             truth: self.truth.clone(),
             matching: MatchParams::default(),
+            anchor_sigma_m: self.anchor_sigma_m,
             out: self.out.clone(),
         };
         let bar = towernav_eval::progress::bar(0, "frames");
@@ -117,8 +125,18 @@ impl MapTowersArgs {
         );
         if let Some(s) = &run.score {
             println!(
-                "against the truth: {}/{} towers seen in {SCORE_MIN_VIEWS}+ frames found (within {SCORE_MATCH_M} m), foot RMS {:.2} m (max {:.2}), height RMS {:.2} m, {} phantoms",
-                s.found, s.seen, s.position_rms_m, s.position_max_m, s.height_rms_m, s.phantoms
+                "against the truth: {}/{} towers seen in {SCORE_MIN_VIEWS}+ frames found (within {SCORE_MATCH_M} m), foot RMS {:.2} m (max {:.2}){}, height RMS {:.2} m, {} phantoms",
+                s.found,
+                s.seen,
+                s.position_rms_m,
+                s.position_max_m,
+                if s.anchored > 0 {
+                    format!(" ({} anchored left out)", s.anchored)
+                } else {
+                    String::new()
+                },
+                s.height_rms_m,
+                s.phantoms
             );
             if let Some(m) = &s.bearing_misses {
                 println!(
