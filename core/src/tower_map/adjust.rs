@@ -36,23 +36,11 @@ const ROUNDS: usize = 8;
 /// at all, only there so that a tower without views leaves the system
 /// solvable.
 const START_SIGMA_M: f64 = 1e4;
-/// An anchor is never held tighter than this: a record claiming a
-/// millimetre would make the normal equations stiff for nothing.
-const MIN_ANCHOR_SIGMA_M: f64 = 0.01;
 /// A view's line is never trusted closer than this: within 150 m the box's
 /// centre leaves the axis of a 6-9 m wide lattice tower by 0.2 degrees
 /// (one sigma, measured on a rendered survey with exact poses), about
 /// 0.4 m at the range where most near views are.
 pub const MIN_LINE_SIGMA_M: f64 = 0.4;
-
-/// A tower whose place is known independently of the flight (a surveyed
-/// record): the adjustment holds its foot there to `sigma_m`, which takes
-/// out the flight's mean GNSS error that the views alone cannot see.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Anchor {
-    pub foot: Point2<f64>,
-    pub sigma_m: f64,
-}
 
 /// The feet, their covariances and the camera's position error over time.
 #[derive(Debug, Clone)]
@@ -142,8 +130,7 @@ impl Predicted {
 }
 
 /// Adjusts the towers `views` shows (one list per tower), starting from
-/// `starts`, each held to its anchor where `anchors` (empty, or one entry
-/// per tower) has one; `None` where the system is singular.
+/// `starts`; `None` where the system is singular.
 ///
 /// Gauss-Newton on the bearings themselves, each linearised about the
 /// current estimate: the lines' normals are the predicted bearings', not
@@ -152,7 +139,6 @@ impl Predicted {
 pub fn adjust(
     views: &[Vec<TowerView>],
     starts: &[Point2<f64>],
-    anchors: &[Option<Anchor>],
     p: &TriangulationParams,
 ) -> Option<Adjustment> {
     let mut seconds = BTreeMap::new();
@@ -190,7 +176,7 @@ pub fn adjust(
             &weights,
             &seconds,
             p,
-            (starts, anchors),
+            starts,
             (&feet, &gnss),
         )
         .solve()?;
@@ -260,7 +246,7 @@ fn system(
     weights: &[f64],
     seconds: &BTreeMap<i64, usize>,
     p: &TriangulationParams,
-    (starts, anchors): (&[Point2<f64>], &[Option<Anchor>]),
+    starts: &[Point2<f64>],
     (feet, gnss): (&[Point2<f64>], &[Vector2<f64>]),
 ) -> Bordered {
     let bore = 2 * starts.len();
@@ -268,14 +254,10 @@ fn system(
     // A mount held as calibrated (sigma 0) pins the boresight at zero.
     a.tt[(bore, bore)] += 1.0 / p.boresight_sigma_rad.powi(2).max(1e-12);
     for (j, start) in starts.iter().enumerate() {
-        let (at, sigma) = match anchors.get(j).copied().flatten() {
-            Some(anchor) => (anchor.foot, anchor.sigma_m.max(MIN_ANCHOR_SIGMA_M)),
-            None => (*start, START_SIGMA_M),
-        };
-        let w = 1.0 / (sigma * sigma);
+        let w = 1.0 / (START_SIGMA_M * START_SIGMA_M);
         for axis in 0..2 {
             a.tt[(2 * j + axis, 2 * j + axis)] += w;
-            a.rhs_t[2 * j + axis] += w * at[axis];
+            a.rhs_t[2 * j + axis] += w * start[axis];
         }
     }
     for ((l, at), w) in lines.iter().zip(predicted).zip(weights) {

@@ -110,26 +110,51 @@ fn a_few_short_tracks_that_cross_make_no_tower() {
 }
 
 #[test]
-fn a_surveyed_record_anchors_the_tower_it_fits_and_one_the_flight_contradicts_anchors_nothing() {
-    let feet = [Point2::new(0.0, 0.0), Point2::new(200.0, 0.0)];
-    // Placed to 0.5 m, the flight's shared error included.
-    let covariances = [nalgebra::Matrix2::identity() * 0.25; 2];
-    let anchors = [
-        Anchor {
-            foot: Point2::new(0.8, -0.6),
-            sigma_m: 0.1,
-        },
-        // 6 m off while claiming 10 cm: a record moved by a typing slip.
-        Anchor {
-            foot: Point2::new(206.0, 0.0),
-            sigma_m: 0.1,
-        },
-        // A second record on the first tower, further off: the nearer wins.
-        Anchor {
-            foot: Point2::new(1.2, 0.5),
-            sigma_m: 0.1,
-        },
-    ];
-    let held = anchored(&feet, &covariances, &anchors);
-    assert_eq!(held, vec![Some(anchors[0]), None]);
+fn a_flight_logged_off_by_one_offset_is_moved_onto_its_surveyed_tower() {
+    // Two towers, each passed on both sides, every pose logged 1.2 m east
+    // and 0.9 m north of where it was: the views agree with each other, so
+    // the towers land off by the same. One tower surveyed to 5 cm puts the
+    // other back.
+    let (a, b) = (Point3::new(0.0, 150.0, 0.0), Point3::new(40.0, 450.0, 0.0));
+    let off = nalgebra::Vector3::new(1.2, 0.9, 0.0);
+    let mut mapper = TowerMapper::default();
+    for (id, foot, start_s, north) in [
+        (1, a, 0.0, 0.0),
+        (2, a, 40.0, 300.0),
+        (3, b, 80.0, 300.0),
+        (4, b, 120.0, 600.0),
+    ] {
+        for v in pass(start_s, north, foot) {
+            mapper.add(
+                id,
+                TowerType::A,
+                TowerView {
+                    camera_in_world: v.camera_in_world + off,
+                    ..v
+                },
+            );
+        }
+    }
+    let p = TriangulationParams::default();
+    let free = mapper.finish(&p, Some(0.0), &[]);
+    let near = |towers: &[MappedTower], foot: Point3<f64>| {
+        towers
+            .iter()
+            .find(|t| (t.estimate.foot_in_world - foot).norm() < 5.0)
+            .cloned()
+            .expect("found")
+    };
+    assert!((near(&free, b).estimate.foot_in_world - (b + off)).norm() < 0.2);
+    let surveyed = Anchor {
+        foot: a.xy(),
+        sigma_m: 0.05,
+    };
+    let held = mapper.finish(&p, Some(0.0), &[surveyed]);
+    let (ta, tb) = (near(&held, a), near(&held, b));
+    assert!(ta.anchored && !tb.anchored);
+    assert!(
+        (tb.estimate.foot_in_world - b).norm() < 0.2,
+        "{:?}",
+        tb.estimate.foot_in_world
+    );
 }

@@ -4,6 +4,7 @@
 //! (`matching`). Pure: views in, estimates out.
 
 pub mod adjust;
+pub mod anchor;
 pub mod bearing_misses;
 mod bordered;
 mod height_trend;
@@ -15,7 +16,7 @@ use std::collections::BTreeMap;
 
 use towernav_protocol::TowerType;
 
-pub use adjust::Anchor;
+pub use anchor::Anchor;
 pub use matching::{KnownTower, MatchParams, MatchReport, Verdict, match_towers};
 pub use triangulate::{TowerEstimate, TowerView, TriangulationParams, triangulate};
 
@@ -29,7 +30,7 @@ pub struct MappedTower {
     pub track_ids: Vec<u64>,
     /// The longest stretch of flight it was seen in without a break, s.
     pub followed_s: f64,
-    /// Held to a surveyed record (`Anchor`): its place is the record's, a
+    /// A surveyed record (`Anchor`) fits it: its place is the record's, a
     /// reference for the others, not a measurement.
     pub anchored: bool,
 }
@@ -79,8 +80,6 @@ const MERGE_M: f64 = 5.0;
 const SWITCH_M: f64 = 15.0;
 const SWITCH_SHARE: f64 = 0.15;
 const SWITCH_VIEWS: usize = 3;
-/// A surveyed record anchors the tower it lies within this many sigmas of.
-const ANCHOR_GATE_SIGMAS: f64 = 3.0;
 
 impl TowerView {
     /// Where the foot's ray meets level ground at `ground_z`; `None` for a
@@ -240,7 +239,7 @@ impl TowerMapper {
     /// each view's foot); tracks of one tower (a tower passed twice, a track
     /// lost and found again) merged and triangulated together; then all the
     /// towers adjusted at once with the flight's pose errors (`adjust`),
-    /// each held to the one `anchors` entry it fits, if any.
+    /// then moved together onto the surveyed `anchors` they fit.
     pub fn finish(
         &self,
         p: &TriangulationParams,
@@ -428,8 +427,9 @@ fn merge_duplicates(
 /// (the camera moved by the solved GNSS error, the bearing turned by the
 /// solved heading error: far tighter than the pose's own errors), and the
 /// towers adjusted again. Each view's camera is corrected before the
-/// heights are measured. `None` for a tower left as it was; `true` beside
-/// a tower held to an anchor.
+/// heights are measured. Last, every tower moved by the one translation
+/// that takes those a surveyed record fits onto their records (`anchor`).
+/// `None` for a tower left as it was; `true` beside an anchored tower.
 fn adjusted(
     towers: &[(Vec<u64>, Vec<TowerView>, TowerEstimate)],
     p: &TriangulationParams,
@@ -438,7 +438,7 @@ fn adjusted(
 ) -> Vec<Option<(Vec<TowerView>, TowerEstimate, bool)>> {
     let views: Vec<Vec<TowerView>> = towers.iter().map(|t| t.1.clone()).collect();
     let starts: Vec<_> = towers.iter().map(|t| t.2.foot_in_world.xy()).collect();
-    let Some(a) = adjust::adjust(&views, &starts, &[], p) else {
+    let Some(a) = adjust::adjust(&views, &starts, p) else {
         return vec![None; towers.len()];
     };
     let placed: Vec<TowerEstimate> = towers
@@ -456,21 +456,18 @@ fn adjusted(
             .hypot(adjust::MIN_LINE_SIGMA_M)
     };
     let regrouped = reown(&views, &placed, |v| a.corrected(v), sigma, ground_z);
-    let held = anchored(&a.feet, &a.covariances, anchors);
-    let Some(a) = adjust::adjust(&regrouped, &a.feet, &held, p) else {
+    let Some(a) = adjust::adjust(&regrouped, &a.feet, p) else {
         return vec![None; towers.len()];
     };
-    if held.iter().any(Option::is_some) {
-        let moved = held
-            .iter()
-            .zip(&a.feet)
-            .filter_map(|(h, f)| h.map(|h| (h.foot - f).norm()))
-            .fold(0.0f64, f64::max);
+    let paired = anchor::pair(&a.feet, &a.covariances, anchors);
+    let shift = anchor::shift(&a.feet, &a.covariances, &paired);
+    if let Some(s) = &shift {
         tracing::info!(
-            anchors = held.iter().flatten().count(),
+            anchors = paired.iter().flatten().count(),
             of = anchors.len(),
-            worst_left_m = format!("{moved:.2}"),
-            "towers held to their surveyed places"
+            east_m = format!("{:.2}", s.by.x),
+            north_m = format!("{:.2}", s.by.y),
+            "towers moved onto their surveyed anchors"
         );
     }
     if p.boresight_sigma_rad > 0.0 {
@@ -502,40 +499,19 @@ fn adjusted(
                 (spread, inlier_share),
                 p,
             )?;
-            Some((views, e, held[j].is_some()))
+            // The towers' ellipses keep the shared error the shift took
+            // out: conservative, where they would otherwise claim the
+            // anchors' accuracy for towers far from any.
+            let e = match &shift {
+                Some(s) => TowerEstimate {
+                    foot_in_world: e.foot_in_world + s.by.push(0.0),
+                    ..e
+                },
+                None => e,
+            };
+            Some((views, e, paired[j].is_some()))
         })
         .collect()
-}
-
-/// Each anchor given to the nearest tower whose placing, with the flight's
-/// shared GNSS error in its ellipse, holds it within three sigmas of the
-/// two together (one anchor per tower, the nearer kept). A surveyed record
-/// that the flight contradicts anchors nothing: it could only pull.
-fn anchored(
-    feet: &[nalgebra::Point2<f64>],
-    covariances: &[nalgebra::Matrix2<f64>],
-    anchors: &[Anchor],
-) -> Vec<Option<Anchor>> {
-    let mut held: Vec<Option<(Anchor, f64)>> = vec![None; feet.len()];
-    for anchor in anchors {
-        let fit = feet
-            .iter()
-            .zip(covariances)
-            .enumerate()
-            .filter_map(|(j, (f, c))| {
-                let d = anchor.foot - f;
-                let cov = c + nalgebra::Matrix2::identity() * anchor.sigma_m.powi(2);
-                let m2 = (d.transpose() * cov.try_inverse()? * d)[0];
-                (m2 <= ANCHOR_GATE_SIGMAS.powi(2)).then_some((j, d.norm()))
-            })
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        if let Some((j, d)) = fit
-            && held[j].is_none_or(|(_, kept)| d < kept)
-        {
-            held[j] = Some((*anchor, d));
-        }
-    }
-    held.into_iter().map(|h| h.map(|(a, _)| a)).collect()
 }
 
 #[cfg(test)]
