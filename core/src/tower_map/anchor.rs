@@ -71,13 +71,18 @@ pub fn pair(
 
 /// The weighted mean of the paired anchors' offsets (record minus tower),
 /// each weighted by the inverse of the tower's and the record's
-/// covariances together; `None` without a pair.
+/// covariances together, with a prior of `prior_sigma_m` (the GNSS error's
+/// sigma: the error the flight shares is no larger) about no shift, so
+/// that one anchor placed loosely along its rays moves the rest by little
+/// along them; `None` without a pair.
 pub fn shift(
     feet: &[Point2<f64>],
     covariances: &[Matrix2<f64>],
     paired: &[Option<Anchor>],
+    prior_sigma_m: f64,
 ) -> Option<Shift> {
-    let mut information = Matrix2::zeros();
+    paired.iter().any(Option::is_some).then_some(())?;
+    let mut information = Matrix2::identity() / prior_sigma_m.max(MIN_SIGMA_M).powi(2);
     let mut sum = Vector2::zeros();
     for ((f, c), anchor) in feet.iter().zip(covariances).zip(paired) {
         let Some(anchor) = anchor else { continue };

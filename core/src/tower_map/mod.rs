@@ -460,7 +460,7 @@ fn adjusted(
         return vec![None; towers.len()];
     };
     let paired = anchor::pair(&a.feet, &a.covariances, anchors);
-    let shift = anchor::shift(&a.feet, &a.covariances, &paired);
+    let shift = anchor::shift(&a.feet, &a.covariances, &paired, p.position_sigma_m);
     if let Some(s) = &shift {
         tracing::info!(
             anchors = paired.iter().flatten().count(),
