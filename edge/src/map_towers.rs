@@ -79,7 +79,7 @@ pub struct MapScore {
     pub height_rms_m: f64,
     /// Proposals farther than `SCORE_MATCH_M` from every true tower.
     pub phantoms: usize,
-    /// Proposals held to a surveyed record: found, but left out of the
+    /// Proposals a surveyed record anchored: found, but left out of the
     /// position figures (their place is the record's).
     pub anchored: usize,
     /// The views' bearings against the true towers, with the log's poses.

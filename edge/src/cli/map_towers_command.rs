@@ -39,9 +39,9 @@ pub struct MapTowersArgs {
     #[arg(long, default_value_t = 0.0)]
     boresight_sigma_deg: f64,
     /// Known towers whose record states a horizontal sigma of at most this
-    /// (metres; a crew's surveyed towers) hold the survey to their places:
-    /// the flight's shared GNSS error, which its views cannot see, comes
-    /// out against them. 0: none.
+    /// (metres; a crew's surveyed towers) anchor the survey: all towers are
+    /// moved by one translation onto them, taking out the flight's shared
+    /// GNSS error, which its views cannot see. 0: none.
     #[arg(long, default_value_t = 1.0)]
     anchor_sigma_m: f64,
     /// A tower needs this many views.
