@@ -727,18 +727,22 @@ async fn a_ground_station_restart_keeps_its_database_and_never_applies_a_correct
     assert_eq!(db.list()?.len(), 18, "the database is whole");
 
     let second = start_gs();
-    // Until the pin shows and the live poses run 2 s past what the first
-    // one heard (the history, fetched at start, has come by then).
-    let (mut pinned_seen, mut live_s) = (false, 0.0);
+    // Until the pin shows, a pose from before the restart has come (the
+    // history, whose reply may trail the live poses on a loaded machine) and
+    // the live poses run 2 s past what the first one heard; 15 s at most.
+    let (mut pinned_seen, mut live_s, mut oldest_s) = (false, 0.0, f64::INFINITY);
     let seen = collect(&second, |e| {
         match e {
-            NetEvent::Pose(p) => live_s = f64::max(live_s, p.time_s),
+            NetEvent::Pose(p) => {
+                live_s = f64::max(live_s, p.time_s);
+                oldest_s = f64::min(oldest_s, p.time_s);
+            }
             NetEvent::Tracks(t) => {
                 pinned_seen |= t.tracks.iter().any(|t| t.track_id == track && t.pinned)
             }
             _ => {}
         }
-        pinned_seen && live_s > before_restart_s + 2.0
+        pinned_seen && oldest_s <= before_restart_s && live_s > before_restart_s + 2.0
     });
     let poses: Vec<&PoseEstimate> = seen
         .iter()
