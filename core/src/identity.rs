@@ -532,22 +532,22 @@ impl Identity {
     }
 }
 
-/// How far, pixels, the side of a box cut by the image's left or right border
-/// that is still in view lies beyond the farthest the predicted tower reaches
-/// into the image: its axis (top to foot, leaning with the roll) and half its
-/// height beyond (no tower is wider than it is tall). A box cut at the left
-/// border with its right side at 60 px is not a tower whose axis stands 700 px
-/// outside the image. Nearer than that, the side says nothing: the box of a
-/// tower seen close and obliquely may end anywhere short of its far side.
+/// How far, pixels, a box cut by the image's left or right border sticks out
+/// of the farthest the predicted tower reaches: its axis (top to foot,
+/// leaning with the roll) and half its height either side (no tower is wider
+/// than it is tall). The side still in view must lie within that reach (a box
+/// cut at the left border with its right side at 60 px is not a tower whose
+/// axis stands 700 px outside the image), and so must the cut side, which is
+/// the border: the tower runs on past it, so one predicted wholly on the
+/// other side of the image, or wholly inside it, did not leave this box.
+/// Within the reach the sides say nothing: the box of a tower seen close and
+/// obliquely may end anywhere short of its far side.
 fn visible_side_offset(b: &PixelBox, cut: Cut, predicted: Prediction) -> f64 {
-    let reach = 0.5 * predicted.height.max(0.0) + predicted.lean.abs();
-    if cut.left && !cut.right {
-        (b.right - (predicted.u + reach)).max(0.0)
-    } else if cut.right && !cut.left {
-        ((predicted.u - reach) - b.left).max(0.0)
-    } else {
-        0.0
+    if cut.left == cut.right {
+        return 0.0;
     }
+    let reach = 0.5 * predicted.height.max(0.0) + predicted.lean.abs();
+    ((predicted.u - reach) - b.left).max(0.0) + (b.right - (predicted.u + reach)).max(0.0)
 }
 
 /// A tower's prediction when a box could be it: it stands upright in front
@@ -937,6 +937,10 @@ mod tests {
         };
         assert!(d(25.0) < 2.0, "{}", d(25.0));
         assert!(d(-687.0) > gate, "{}", d(-687.0));
+        // Nor one wholly inside the image, or off its other side: the tower
+        // runs on past the border that cut the box.
+        assert!(d(640.0) > gate, "{}", d(640.0));
+        assert!(d(1843.0) > gate, "{}", d(1843.0));
         // Cut at the right border, the same holds from its left side.
         let mirrored = TrackOutput {
             bbox: PixelBox::new(1221.0, 244.0, 1280.0, 367.0),
@@ -949,6 +953,8 @@ mod tests {
         };
         assert!(d(1255.0) < 2.0, "{}", d(1255.0));
         assert!(d(1967.0) > gate, "{}", d(1967.0));
+        assert!(d(640.0) > gate, "{}", d(640.0));
+        assert!(d(-563.0) > gate, "{}", d(-563.0));
     }
 
     #[test]
