@@ -30,8 +30,8 @@ pub struct MappedTower {
     pub track_ids: Vec<u64>,
     /// The longest stretch of flight it was seen in without a break, s.
     pub followed_s: f64,
-    /// A surveyed record (`Anchor`) fits it: its place is the record's, a
-    /// reference for the others, not a measurement.
+    /// A surveyed record (`Anchor`) fits it: a reference for the others, not
+    /// a measurement (`map-towers` writes the record's place for it).
     pub anchored: bool,
 }
 
