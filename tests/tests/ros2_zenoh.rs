@@ -125,7 +125,8 @@ async fn ros_2_and_px4_see_the_fix_as_rmw_zenoh_would_deliver_it() -> anyhow::Re
         Arc::new(AtomicBool::new(false)),
     )
     .await?;
-    assert_eq!(summary.record.frames, 210);
+    // A real-time source drops a frame the pipeline is too busy for.
+    assert_eq!(summary.record.frames + summary.dropped, 210);
     let heard = tokio::task::spawn_blocking(move || finish(child, &out)).await??;
 
     // Type hashes: rosbags' equal ours, and rosbags' hash of PX4's
