@@ -1,10 +1,11 @@
 //! The project's CSV: `time_s,roll_deg,pitch_deg,heading_deg` (heading
 //! clockwise from north, as autopilots log it), with optional
-//! `lat_deg,lon_deg,alt_msl_m` columns for a GNSS reference.
+//! `lat_deg,lon_deg,alt_msl_m` columns for a GNSS reference and
+//! `vel_north_mps,vel_east_mps` for its velocity.
 
 use towernav_geometry::Attitude;
 
-use crate::samples::{AttitudeSample, GnssSample};
+use crate::samples::{AttitudeSample, GnssSample, GroundVelocity};
 use crate::{FlightLog, LogError};
 
 #[derive(serde::Deserialize)]
@@ -16,6 +17,8 @@ struct Row {
     lat_deg: Option<f64>,
     lon_deg: Option<f64>,
     alt_msl_m: Option<f64>,
+    vel_north_mps: Option<f64>,
+    vel_east_mps: Option<f64>,
 }
 
 pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
@@ -51,6 +54,10 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
                 lat_deg: lat,
                 lon_deg: lon,
                 alt_msl_m: alt,
+                velocity: r
+                    .vel_north_mps
+                    .zip(r.vel_east_mps)
+                    .and_then(|(n, e)| GroundVelocity::new(n, e)),
             });
         }
     }

@@ -7,7 +7,7 @@
 use ardupilot_binlog::{Entry, Reader};
 use towernav_geometry::Attitude;
 
-use crate::samples::{AttitudeSample, BaroSample, GnssSample};
+use crate::samples::{AttitudeSample, BaroSample, GnssSample, GroundVelocity};
 use crate::{FlightLog, LogError};
 
 /// GPS `Status` of a 3-D fix or better.
@@ -118,6 +118,11 @@ fn fix_of(e: &Entry, time_s: f64) -> Option<GnssSample> {
             lat_deg: lat,
             lon_deg: lon,
             alt_msl_m: alt,
+            // `Spd` m/s over the ground, `GCrs` degrees from north.
+            velocity: e
+                .get_f64("Spd")
+                .zip(e.get_f64("GCrs"))
+                .and_then(|(s, c)| GroundVelocity::from_course(s, c)),
         },
     )
 }

@@ -213,6 +213,7 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
             lat_deg: f.lat_deg,
             lon_deg: f.lon_deg,
             alt_msl_m: f.abs_alt_m.or(f.rel_alt_m).unwrap_or(0.0),
+            velocity: None,
         });
         if let Some(rel) = f.rel_alt_m {
             log.barometer.push(BaroSample {

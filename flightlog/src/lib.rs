@@ -19,7 +19,7 @@ mod ulog;
 use std::path::Path;
 
 pub use error::LogError;
-pub use samples::{AttitudeSample, BaroSample, GnssSample, MAX_GNSS_GAP_S};
+pub use samples::{AttitudeSample, BaroSample, GnssSample, GroundVelocity, MAX_GNSS_GAP_S};
 
 use towernav_geometry::Attitude;
 

@@ -274,3 +274,86 @@ fn barometers_read_as_pymavlink_and_pyulog_read_them() {
         assert!(close(between, alt, 1e-3), "{name}: {between}");
     }
 }
+
+/// The receivers' velocities, integrated over 5 s, against how far their
+/// positions moved in that time: the same to a few percent where the
+/// velocity's axes, units and signs are read right (a swapped axis or a
+/// course read in the wrong unit misses by the whole distance).
+#[test]
+fn ground_velocities_agree_with_the_positions_they_move() {
+    let cases = [
+        "ardupilot/copter_loiter_rtl.bin",
+        "ardupilot/copter_83.bin",
+        "ardupilot/plane_329.bin",
+        "px4/sample_log_small.ulg",
+    ];
+    for name in cases {
+        let Some(path) = shared_log(name) else {
+            continue;
+        };
+        let log = FlightLog::read(&path).expect(name);
+        let fixes = &log.gnss;
+        let with_velocity = fixes.iter().filter(|g| g.velocity.is_some()).count();
+        assert!(
+            with_velocity * 10 >= fixes.len() * 9,
+            "{name}: {with_velocity} of {}",
+            fixes.len()
+        );
+        let mut misses = Vec::new();
+        for i in 0..fixes.len() {
+            let Some(j) = (i + 1..fixes.len()).find(|&j| fixes[j].time_s - fixes[i].time_s >= 10.0)
+            else {
+                break;
+            };
+            let window = &fixes[i..=j];
+            if window
+                .windows(2)
+                .any(|w| w[1].time_s - w[0].time_s > crate::MAX_GNSS_GAP_S)
+            {
+                continue;
+            }
+            let mut flown = [0.0, 0.0];
+            for w in window.windows(2) {
+                let (Some(a), Some(b)) = (w[0].velocity, w[1].velocity) else {
+                    continue;
+                };
+                let dt = w[1].time_s - w[0].time_s;
+                flown[0] += 0.5 * (a.north_mps + b.north_mps) * dt;
+                flown[1] += 0.5 * (a.east_mps + b.east_mps) * dt;
+            }
+            let metres_per_deg = 111_320.0;
+            let moved = [
+                (fixes[j].lat_deg - fixes[i].lat_deg) * metres_per_deg,
+                (fixes[j].lon_deg - fixes[i].lon_deg)
+                    * metres_per_deg
+                    * fixes[i].lat_deg.to_radians().cos(),
+            ];
+            // Where it flew: hovering, the position's own wander is all.
+            let distance = moved[0].hypot(moved[1]);
+            if distance >= 10.0 {
+                misses.push((moved[0] - flown[0]).hypot(moved[1] - flown[1]) / distance);
+            }
+        }
+        if misses.len() < 10 {
+            eprintln!("{name}: {} windows", misses.len());
+            continue;
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let miss = median(&mut misses);
+        let worst = misses[misses.len() * 9 / 10];
+        eprintln!(
+            "{name}: {} windows of 10 s over 10 m, velocities miss by {:.1} % (median), {:.1} % (p90)",
+            misses.len(),
+            100.0 * miss,
+            100.0 * worst
+        );
+        assert!(
+            miss < 0.25 && worst < 0.5,
+            "{name}: median miss {:.1} %",
+            100.0 * miss
+        );
+    }
+}

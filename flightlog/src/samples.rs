@@ -18,6 +18,36 @@ pub struct GnssSample {
     pub lon_deg: f64,
     /// Above mean sea level, as receivers and autopilots log it.
     pub alt_msl_m: f64,
+    /// Where the log gives it: a receiver's velocity comes from the
+    /// carrier's Doppler shift, good to centimetres a second where its
+    /// position wanders by metres, so it tells how the position's error
+    /// changes.
+    pub velocity: Option<GroundVelocity>,
+}
+
+/// Velocity over the ground, metres a second.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroundVelocity {
+    pub north_mps: f64,
+    pub east_mps: f64,
+}
+
+impl GroundVelocity {
+    /// `None` unless both are finite.
+    pub fn new(north_mps: f64, east_mps: f64) -> Option<Self> {
+        (north_mps.is_finite() && east_mps.is_finite()).then_some(Self {
+            north_mps,
+            east_mps,
+        })
+    }
+
+    /// From the ground speed and the course over ground, degrees
+    /// clockwise from north, as ArduPilot's `GPS` and MAVLink's
+    /// `GPS_RAW_INT` log it.
+    pub fn from_course(speed_mps: f64, course_deg: f64) -> Option<Self> {
+        let c = course_deg.to_radians();
+        Self::new(speed_mps * c.cos(), speed_mps * c.sin())
+    }
 }
 
 impl GnssSample {
@@ -77,6 +107,9 @@ pub(crate) fn gnss_at(samples: &[GnssSample], time_s: f64) -> Option<GnssSample>
         lat_deg: mix(before.lat_deg, after.lat_deg),
         lon_deg: mix(before.lon_deg, after.lon_deg),
         alt_msl_m: mix(before.alt_msl_m, after.alt_msl_m),
+        velocity: before.velocity.zip(after.velocity).and_then(|(a, b)| {
+            GroundVelocity::new(mix(a.north_mps, b.north_mps), mix(a.east_mps, b.east_mps))
+        }),
     })
 }
 
@@ -151,10 +184,12 @@ mod tests {
             lat_deg: lat,
             lon_deg: 10.0,
             alt_msl_m: 100.0 + t,
+            velocity: GroundVelocity::new(t, -t),
         };
         let fixes = [fix(0.0, 50.0), fix(0.5, 50.001), fix(3.0, 50.002)];
         let mid = gnss_at(&fixes, 0.25).expect("between fixes");
         assert!((mid.lat_deg - 50.0005).abs() < 1e-12 && (mid.alt_msl_m - 100.25).abs() < 1e-12);
+        assert_eq!(mid.velocity, GroundVelocity::new(0.25, -0.25));
         assert_eq!(gnss_at(&fixes, 0.5), Some(fixes[1]));
         assert!(
             gnss_at(&fixes, 1.0).is_none(),

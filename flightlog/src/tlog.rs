@@ -9,7 +9,7 @@ use mavlink::MavlinkReader;
 use mavlink::dialects::common::{GpsFixType, MavMessage};
 use towernav_geometry::Attitude;
 
-use crate::samples::{AttitudeSample, BaroSample, GnssSample};
+use crate::samples::{AttitudeSample, BaroSample, GnssSample, GroundVelocity};
 use crate::{FlightLog, LogError};
 
 const STAMP: usize = 8;
@@ -83,6 +83,8 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
                     lat_deg: f64::from(p.lat) * 1e-7,
                     lon_deg: f64::from(p.lon) * 1e-7,
                     alt_msl_m: f64::from(p.alt) * 1e-3,
+                    // cm/s, x north and y east.
+                    velocity: GroundVelocity::new(f64::from(p.vx) / 100.0, f64::from(p.vy) / 100.0),
                 });
             }
             MavMessage::GPS_RAW_INT(g) if vehicle.is_none_or(|v| v == header.system_id) => {
@@ -101,6 +103,15 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
                         lat_deg: f64::from(g.lat) * 1e-7,
                         lon_deg: f64::from(g.lon) * 1e-7,
                         alt_msl_m: f64::from(g.alt) * 1e-3,
+                        // cm/s and centidegrees; UINT16_MAX where unknown.
+                        velocity: (g.vel != u16::MAX && g.cog != u16::MAX)
+                            .then(|| {
+                                GroundVelocity::from_course(
+                                    f64::from(g.vel) / 100.0,
+                                    f64::from(g.cog) / 100.0,
+                                )
+                            })
+                            .flatten(),
                     },
                 ));
             }

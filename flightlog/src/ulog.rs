@@ -7,7 +7,9 @@ use yule_log::builder::ULogParserBuilder;
 use yule_log::model::inst::{FieldValue, Format};
 use yule_log::model::msg::UlogMessage;
 
-use crate::samples::{AttitudeSample, BaroSample, GnssSample, attitude_of_ned_quaternion};
+use crate::samples::{
+    AttitudeSample, BaroSample, GnssSample, GroundVelocity, attitude_of_ned_quaternion,
+};
 use crate::{FlightLog, LogError};
 
 pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
@@ -64,6 +66,7 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<FlightLog, LogError> {
                         lat_deg: lat,
                         lon_deg: lon,
                         alt_msl_m: alt,
+                        velocity: None,
                     });
                 }
             }
@@ -113,11 +116,16 @@ fn receiver_fix(data: &Format, time_s: f64) -> Option<GnssSample> {
             scalar(data, "alt")? * 1e-3,
         ),
     };
+    // `vel_ned_valid` is 0 where the receiver gave no velocity.
+    let velocity = (scalar(data, "vel_ned_valid") != Some(0.0))
+        .then(|| GroundVelocity::new(scalar(data, "vel_n_m_s")?, scalar(data, "vel_e_m_s")?))
+        .flatten();
     Some(GnssSample {
         time_s,
         lat_deg: lat,
         lon_deg: lon,
         alt_msl_m: alt,
+        velocity,
     })
 }
 

@@ -94,6 +94,8 @@ fn gnss(t: &Telemetry) -> Vec<GnssSample> {
         lat_deg: lat,
         lon_deg: lon,
         alt_msl_m: alt,
+        // GPS5 and GPS9 give the speed, not its direction.
+        velocity: None,
     };
     if let Some(gps9) = t.stream("GPS9") {
         return gps9
