@@ -129,6 +129,10 @@ enum Command {
         /// fresh error every fix).
         #[arg(long, default_value_t = 10.0)]
         gnss_correlation_s: f64,
+        /// One-sigma error of flight.tlog's GNSS velocities, m/s per axis
+        /// (forgotten within a second).
+        #[arg(long, default_value_t = 0.1)]
+        gnss_velocity_sigma_mps: f64,
         /// One-sigma IMU attitude error (roll, pitch and heading), degrees;
         /// default: the simulator's IMU (0.1 roll and pitch, 0.2 heading).
         #[arg(long)]
@@ -243,6 +247,7 @@ fn main() -> anyhow::Result<()> {
             calibration,
             gnss_sigma_m,
             gnss_correlation_s,
+            gnss_velocity_sigma_mps,
             attitude_sigma_deg,
             weather,
             dataset_every,
@@ -257,6 +262,10 @@ fn main() -> anyhow::Result<()> {
                 "--attitude-sigma-deg must be 0 or more"
             );
             anyhow::ensure!(
+                gnss_velocity_sigma_mps.is_finite() && gnss_velocity_sigma_mps >= 0.0,
+                "--gnss-velocity-sigma-mps must be 0 or more, got {gnss_velocity_sigma_mps}"
+            );
+            anyhow::ensure!(
                 gnss_sigma_m.is_finite() && gnss_sigma_m >= 0.0,
                 "--gnss-sigma-m must be 0 or more, got {gnss_sigma_m}"
             );
@@ -268,6 +277,7 @@ fn main() -> anyhow::Result<()> {
                     horizontal_sigma_m: gnss_sigma_m,
                     vertical_sigma_m: 2.0 * gnss_sigma_m,
                     correlation_s: gnss_correlation_s,
+                    velocity_sigma_mps: gnss_velocity_sigma_mps,
                 },
                 dataset_every,
             };

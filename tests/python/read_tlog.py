@@ -28,7 +28,16 @@ def main(path):
             attitude.append([msg.time_boot_ms, msg.roll, msg.pitch, msg.yaw])
         elif kind == "GLOBAL_POSITION_INT":
             position.append(
-                [msg.time_boot_ms, msg.lat, msg.lon, msg.alt, msg.relative_alt, msg._timestamp]
+                [
+                    msg.time_boot_ms,
+                    msg.lat,
+                    msg.lon,
+                    msg.alt,
+                    msg.relative_alt,
+                    msg._timestamp,
+                    msg.vx,
+                    msg.vy,
+                ]
             )
     json.dump(
         {"counts": counts, "bad": bad, "attitude": attitude, "position": position},

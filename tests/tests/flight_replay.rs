@@ -441,6 +441,33 @@ fn pymavlink_reads_the_simulator_s_tlog_as_the_flight_it_flew() {
     }
     let rms = (sum / fixes.len() as f64).sqrt();
     assert!((0.5..4.0).contains(&rms), "GNSS error RMS {rms:.2} m");
+
+    // Velocities (cm/s, x north, y east) the truth's within the receiver's
+    // 0.1 m/s, and read by the project's reader as pymavlink reads them.
+    let log = towernav_flightlog::FlightLog::read(&tlog).expect("reads");
+    assert_eq!(log.gnss.len(), fixes.len());
+    let mut sq = 0.0;
+    for (fix, ours) in fixes.iter().zip(&log.gnss).skip(1) {
+        let boot_s = fix[0].as_f64().expect("time") / 1000.0;
+        let seq = (((boot_s - 12.5) * scenario.fps).round() as u64).clamp(1, frames - 1);
+        let flown = (scenario.truth(seq).pose.position_in_world
+            - scenario.truth(seq - 1).pose.position_in_world)
+            * scenario.fps;
+        let (north, east) = (
+            fix[6].as_f64().expect("vx") / 100.0,
+            fix[7].as_f64().expect("vy") / 100.0,
+        );
+        let miss = (north - flown.y).hypot(east - flown.x);
+        assert!(miss < 0.6, "velocity at {boot_s} s off by {miss:.2} m/s");
+        sq += miss * miss / 2.0;
+        let v = ours.velocity.expect("a velocity with every fix");
+        assert!((v.north_mps - north).abs() < 1e-9 && (v.east_mps - east).abs() < 1e-9);
+    }
+    let rms = (sq / (fixes.len() - 1) as f64).sqrt();
+    assert!(
+        (0.05..0.2).contains(&rms),
+        "velocity error RMS {rms:.3} m/s a axis"
+    );
 }
 
 /// The simulator's truth boxes: (frame, tower) to (box, cut by the frame, occluded share).

@@ -105,21 +105,28 @@ impl TlogWriter {
         Ok(())
     }
 
-    fn position(&self, boot_ms: u32, row: &LogRow, fix: &Point3<f64>) -> GLOBAL_POSITION_INT_DATA {
+    fn position(
+        &mut self,
+        boot_ms: u32,
+        row: &LogRow,
+        fix: &Point3<f64>,
+    ) -> GLOBAL_POSITION_INT_DATA {
         let g = self.datum.to_geodetic(fix);
         let msl = g.height_m - geoid_height_m(g.lat_deg, g.lon_deg);
-        // Velocity from the truth's last step, north-east-down, cm/s.
+        // Velocity from the truth's last step with the receiver's error,
+        // north-east-down, cm/s.
         let v = self.previous.map_or(nalgebra::Vector3::zeros(), |(t, p)| {
             (row.position_in_world - p) / (row.time_s - t).max(1e-3)
         });
+        let ground = self.gnss.velocity(row.time_s, v.xy());
         GLOBAL_POSITION_INT_DATA {
             time_boot_ms: boot_ms,
             lat: (g.lat_deg * 1e7).round() as i32,
             lon: (g.lon_deg * 1e7).round() as i32,
             alt: (msl * 1e3).round() as i32,
             relative_alt: (fix.z * 1e3).round() as i32,
-            vx: (v.y * 100.0).round() as i16,
-            vy: (v.x * 100.0).round() as i16,
+            vx: (ground.y * 100.0).round() as i16,
+            vy: (ground.x * 100.0).round() as i16,
             vz: (-v.z * 100.0).round() as i16,
             hdg: (row.attitude.yaw_from_north().to_degrees().rem_euclid(360.0) * 100.0).round()
                 as u16,
