@@ -15,11 +15,13 @@ use anyhow::Context;
 use geojson::{Feature, FeatureCollection, Geometry, JsonObject, JsonValue};
 use towernav_core::survey_labels::{LabelCamera, LabelParams, project_labels};
 use towernav_core::tower_map::bearing_misses::BearingMisses;
+use towernav_core::tower_map::drift::expected_window_miss;
 use towernav_core::tower_map::{
-    Anchor, KnownTower, MappedTower, MatchParams, MatchReport, TowerMapper, TowerView,
-    TriangulationParams, Verdict, match_towers,
+    Anchor, DriftFix, GnssDrift, KnownTower, MappedTower, MatchParams, MatchReport, TowerMapper,
+    TowerView, TriangulationParams, Verdict, match_towers,
 };
 use towernav_core::tracker::{SortParams, SortTracker, Tracker, TrackerInput};
+use towernav_flightlog::FlightLog;
 use towernav_geometry::Datum;
 use towernav_protocol::{LandmarkRecord, TowerType};
 
@@ -182,7 +184,12 @@ pub fn map_towers(
         .0
         .context("map-towers needs a detector model (not the oracle)")?;
     let mut tracker = SortTracker::new(SortParams::default());
-    let mut mapper = TowerMapper::default();
+    let mut mapper = TowerMapper::default().with_drift(log_drift(
+        &log,
+        &datum,
+        offset_s,
+        &options.triangulation,
+    ));
     let mut run_frames = 0;
     let mut without_pose = 0;
     let total = source.frame_count();
@@ -288,6 +295,52 @@ pub fn map_towers(
     };
     write_outputs(&run, &options.out)?;
     Ok(run)
+}
+
+/// The log's fixes that carry a velocity, on the video's clock, as the
+/// adjustment's measure of how the GNSS error changes; none where the log
+/// has no velocities, or where over 10 s they miss its positions by more
+/// than its GNSS error wanders (velocities read or logged wrong).
+fn log_drift(log: &FlightLog, datum: &Datum, offset_s: f64, p: &TriangulationParams) -> GnssDrift {
+    if p.velocity_sigma_mps <= 0.0 {
+        return GnssDrift::default();
+    }
+    let fixes: Vec<DriftFix> = log
+        .gnss
+        .iter()
+        .filter_map(|g| {
+            let v = g.velocity?;
+            Some(DriftFix {
+                time_s: g.time_s - offset_s,
+                position: datum.to_enu(&g.geodetic()?).xy(),
+                velocity: nalgebra::Vector2::new(v.east_mps, v.north_mps),
+            })
+        })
+        .collect();
+    let drift = GnssDrift::new(&fixes);
+    let Some(miss) = drift.window_miss() else {
+        tracing::info!(
+            "the log gives no GNSS velocities: each second's GNSS error has its prior alone"
+        );
+        return GnssDrift::default();
+    };
+    let expected = expected_window_miss(p.position_sigma_m, p.position_correlation_s);
+    let (miss_m, expected_m) = (format!("{miss:.2}"), format!("{expected:.2}"));
+    if miss > 3.0 * expected + 1.0 {
+        tracing::warn!(
+            miss_m,
+            expected_m,
+            "the log's velocities miss its positions over 10 s by more than its GNSS error wanders: left out"
+        );
+        return GnssDrift::default();
+    }
+    tracing::info!(
+        fixes = fixes.len(),
+        miss_m,
+        expected_m,
+        "the log's GNSS velocities tie each second's GNSS error to the next"
+    );
+    drift
 }
 
 /// Each measured tower as a record to import: a confirmed one keeps its id,

@@ -13,6 +13,10 @@
 //! towers and all camera positions moved together) stays with the prior:
 //! the flight's mean GNSS error, which the covariance reports.
 //!
+//! Where the log gives velocities, how the GNSS error changed from one
+//! second to the next is measured too (`drift`): the logged track less the
+//! one its velocities integrate to.
+//!
 //! Each view gives one equation, its measured bearing against the bearing
 //! from its corrected camera to its tower, linearised about the current
 //! estimate: `n . (foot + gnss_error) + range * (heading_error + boresight)
@@ -27,11 +31,15 @@ use nalgebra::{Matrix2, Matrix3, Point2, Rotation3, Vector2, Vector3};
 use towernav_geometry::wrap_angle;
 
 use super::bordered::Bordered;
+use super::drift::GnssDrift;
 use super::triangulate::{TowerView, TriangulationParams};
 
 /// Seconds of flight that share one GNSS error and one heading error.
 const BIN_S: f64 = 1.0;
 const ROUNDS: usize = 8;
+/// A velocity's error is forgotten within this, s: over a gap of `t`
+/// seconds the velocities' track wanders by `sigma * sqrt(2 * this * t)`.
+const VELOCITY_CORRELATION_S: f64 = 1.0;
 /// How far a tower may be from where it started, one sigma: no constraint
 /// at all, only there so that a tower without views leaves the system
 /// solvable.
@@ -54,6 +62,9 @@ pub struct Adjustment {
     heading: BTreeMap<i64, f64>,
     /// The camera's constant yaw against the attitude, rad.
     pub boresight: f64,
+    /// What the log's velocities say of the GNSS error's change within
+    /// each second; empty where they were left out.
+    drift: GnssDrift,
 }
 
 impl Adjustment {
@@ -75,7 +86,7 @@ impl Adjustment {
     /// `view` with its camera moved by the GNSS error and its rays turned
     /// back by the heading error solved for its second.
     pub fn corrected(&self, view: &TowerView) -> TowerView {
-        let e = self.gnss_error(view.time_s);
+        let e = self.gnss_error(view.time_s) + within_second(&self.drift, view.time_s);
         let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), -self.heading_error(view.time_s));
         TowerView {
             camera_in_world: view.camera_in_world - Vector3::new(e.x, e.y, 0.0),
@@ -89,6 +100,20 @@ impl Adjustment {
 
 fn bin(time_s: f64) -> i64 {
     (time_s / BIN_S).floor() as i64
+}
+
+/// The middle of a second's bin, where its GNSS error is solved.
+fn bin_middle(bin: i64) -> f64 {
+    (bin as f64 + 0.5) * BIN_S
+}
+
+/// How much the GNSS error at `time_s` differs from its second's, by the
+/// log's velocities (zero without them): the error wanders by 0.6 m
+/// within a second, which the velocities measure to centimetres.
+fn within_second(drift: &GnssDrift, time_s: f64) -> Vector2<f64> {
+    drift
+        .change(bin_middle(bin(time_s)), time_s)
+        .unwrap_or_else(Vector2::zeros)
 }
 
 /// A view's measured bearing from the camera's logged place.
@@ -130,7 +155,8 @@ impl Predicted {
 }
 
 /// Adjusts the towers `views` shows (one list per tower), starting from
-/// `starts`; `None` where the system is singular.
+/// `starts`, with the GNSS error's changes `drift` measures (empty: none);
+/// `None` where the system is singular.
 ///
 /// Gauss-Newton on the bearings themselves, each linearised about the
 /// current estimate: the lines' normals are the predicted bearings', not
@@ -140,6 +166,7 @@ pub fn adjust(
     views: &[Vec<TowerView>],
     starts: &[Point2<f64>],
     p: &TriangulationParams,
+    drift: &GnssDrift,
 ) -> Option<Adjustment> {
     let mut seconds = BTreeMap::new();
     for v in views.iter().flatten() {
@@ -148,7 +175,12 @@ pub fn adjust(
     for (k, index) in seconds.values_mut().enumerate() {
         *index = k;
     }
-    let lines = lines(views, &seconds);
+    let drift = if p.velocity_sigma_mps > 0.0 {
+        drift.clone()
+    } else {
+        GnssDrift::default()
+    };
+    let lines = lines(views, &seconds, &drift);
     let mut feet = starts.to_vec();
     let mut gnss = vec![Vector2::zeros(); seconds.len()];
     let mut heading = vec![0.0; seconds.len()];
@@ -178,8 +210,8 @@ pub fn adjust(
             p,
             starts,
             (&feet, &gnss),
-        )
-        .solve()?;
+        );
+        let s = with_drift(s, &seconds, &drift, p).solve()?;
         for (j, f) in feet.iter_mut().enumerate() {
             *f = Point2::new(s.towers[2 * j], s.towers[2 * j + 1]);
         }
@@ -205,6 +237,7 @@ pub fn adjust(
         gnss: seconds.iter().map(|(b, &k)| (*b, gnss[k])).collect(),
         heading: seconds.iter().map(|(b, &k)| (*b, heading[k])).collect(),
         boresight,
+        drift,
     })
 }
 
@@ -213,7 +246,8 @@ fn line_sigma(range: f64, p: &TriangulationParams) -> f64 {
     (range * p.box_sigma_rad).hypot(MIN_LINE_SIGMA_M)
 }
 
-fn lines(views: &[Vec<TowerView>], seconds: &BTreeMap<i64, usize>) -> Vec<Line> {
+/// Each view's line, its camera moved to its second's GNSS error.
+fn lines(views: &[Vec<TowerView>], seconds: &BTreeMap<i64, usize>, drift: &GnssDrift) -> Vec<Line> {
     let mut lines = Vec::new();
     for (tower, tower_views) in views.iter().enumerate() {
         let mut per_second: BTreeMap<i64, usize> = BTreeMap::new();
@@ -228,7 +262,7 @@ fn lines(views: &[Vec<TowerView>], seconds: &BTreeMap<i64, usize>) -> Vec<Line> 
             let b = bin(v.time_s);
             lines.push(Line {
                 tower,
-                camera: v.camera_in_world.xy(),
+                camera: v.camera_in_world.xy() - within_second(drift, v.time_s),
                 bearing: d.y.atan2(d.x),
                 second: seconds[&b],
                 share: 1.0 / per_second[&b] as f64,
@@ -294,7 +328,7 @@ fn system(
     );
     // A stationary first-order Gauss-Markov prior: the first second's
     // variance, then each step's, (x_k - keep x_{k-1})^2 / (var (1 - keep^2)).
-    let times: Vec<f64> = seconds.keys().map(|b| (*b as f64 + 0.5) * BIN_S).collect();
+    let times: Vec<f64> = seconds.keys().map(|b| bin_middle(*b)).collect();
     if !times.is_empty() {
         a.diagonal[0] += Matrix3::from_diagonal(&variance.map(|v| 1.0 / v));
     }
@@ -305,6 +339,35 @@ fn system(
         a.diagonal[k] += Matrix3::from_diagonal(&w);
         a.diagonal[k - 1] += Matrix3::from_diagonal(&w.component_mul(&keep.component_mul(&keep)));
         a.below[k] -= Matrix3::from_diagonal(&w.component_mul(&keep));
+    }
+    a
+}
+
+/// The GNSS error's change between consecutive seconds, where `drift`
+/// measures it: `(x_k - x_{k-1} - change)^2 / (2 sigma^2 tau gap)`.
+fn with_drift(
+    mut a: Bordered,
+    seconds: &BTreeMap<i64, usize>,
+    drift: &GnssDrift,
+    p: &TriangulationParams,
+) -> Bordered {
+    if p.velocity_sigma_mps <= 0.0 {
+        return a;
+    }
+    let times: Vec<f64> = seconds.keys().map(|b| bin_middle(*b)).collect();
+    for k in 1..times.len() {
+        let gap = times[k] - times[k - 1];
+        let Some(change) = drift.change(times[k - 1], times[k]) else {
+            continue;
+        };
+        let w = 1.0 / (2.0 * p.velocity_sigma_mps.powi(2) * VELOCITY_CORRELATION_S * gap);
+        for c in 0..2 {
+            a.diagonal[k][(c, c)] += w;
+            a.diagonal[k - 1][(c, c)] += w;
+            a.below[k][(c, c)] -= w;
+            a.rhs_b[k][c] += w * change[c];
+            a.rhs_b[k - 1][c] -= w * change[c];
+        }
     }
     a
 }

@@ -7,6 +7,7 @@ pub mod adjust;
 pub mod anchor;
 pub mod bearing_misses;
 mod bordered;
+pub mod drift;
 mod height_trend;
 pub mod matching;
 pub mod triangulate;
@@ -17,6 +18,7 @@ use std::collections::BTreeMap;
 use towernav_protocol::TowerType;
 
 pub use anchor::Anchor;
+pub use drift::{DriftFix, GnssDrift};
 pub use matching::{KnownTower, MatchParams, MatchReport, Verdict, match_towers};
 pub use triangulate::{TowerEstimate, TowerView, TriangulationParams, triangulate};
 
@@ -70,6 +72,7 @@ struct Cluster {
 #[derive(Debug, Clone, Default)]
 pub struct TowerMapper {
     tracks: BTreeMap<u64, (Vec<TowerView>, BTreeMap<TowerType, usize>)>,
+    drift: GnssDrift,
 }
 
 /// Two tracks' towers closer than this (or than 3 sigma together) are one.
@@ -219,6 +222,12 @@ fn median_point(points: &[nalgebra::Point2<f64>]) -> Option<nalgebra::Point2<f64
 }
 
 impl TowerMapper {
+    /// The log's GNSS error changes, from its velocities, for the
+    /// adjustment (`adjust`); without them it has its prior alone.
+    pub fn with_drift(self, drift: GnssDrift) -> Self {
+        Self { drift, ..self }
+    }
+
     pub fn add(&mut self, track_id: u64, tower_type: TowerType, view: TowerView) {
         let (views, types) = self.tracks.entry(track_id).or_default();
         views.push(view);
@@ -312,7 +321,7 @@ impl TowerMapper {
                 (ids, views, estimate)
             })
             .collect();
-        let adjusted = adjusted(&towers, p, ground_z, anchors);
+        let adjusted = adjusted(&towers, p, ground_z, anchors, &self.drift);
         towers
             .into_iter()
             .zip(adjusted)
@@ -435,10 +444,11 @@ fn adjusted(
     p: &TriangulationParams,
     ground_z: Option<f64>,
     anchors: &[Anchor],
+    drift: &GnssDrift,
 ) -> Vec<Option<(Vec<TowerView>, TowerEstimate, bool)>> {
     let views: Vec<Vec<TowerView>> = towers.iter().map(|t| t.1.clone()).collect();
     let starts: Vec<_> = towers.iter().map(|t| t.2.foot_in_world.xy()).collect();
-    let Some(a) = adjust::adjust(&views, &starts, p) else {
+    let Some(a) = adjust::adjust(&views, &starts, p, drift) else {
         return vec![None; towers.len()];
     };
     let placed: Vec<TowerEstimate> = towers
@@ -456,7 +466,7 @@ fn adjusted(
             .hypot(adjust::MIN_LINE_SIGMA_M)
     };
     let regrouped = reown(&views, &placed, |v| a.corrected(v), sigma, ground_z);
-    let Some(a) = adjust::adjust(&regrouped, &a.feet, p) else {
+    let Some(a) = adjust::adjust(&regrouped, &a.feet, p, drift) else {
         return vec![None; towers.len()];
     };
     let paired = anchor::pair(&a.feet, &a.covariances, anchors);

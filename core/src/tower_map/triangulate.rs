@@ -47,6 +47,10 @@ pub struct TriangulationParams {
     pub position_correlation_s: f64,
     /// Heading errors closer in time than this are one error, s.
     pub bearing_correlation_s: f64,
+    /// One-sigma error of the log's velocity, m/s, forgotten within about
+    /// a second: where the log gives velocities (`drift`), the GNSS error
+    /// of one second is tied to the next by them. 0 leaves them out.
+    pub velocity_sigma_mps: f64,
     /// One-sigma of the camera's constant yaw against the attitude (a
     /// mount never calibrated), rad: one unknown for the whole flight,
     /// which views of a tower from opposite sides pin down. 0 holds the
@@ -74,6 +78,7 @@ impl Default for TriangulationParams {
             position_sigma_m: 1.5,
             position_correlation_s: 10.0,
             bearing_correlation_s: 3.0,
+            velocity_sigma_mps: 0.1,
             boresight_sigma_rad: 0.0,
             min_spread_rad: 10_f64.to_radians(),
             min_views: 5,

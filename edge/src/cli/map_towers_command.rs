@@ -32,6 +32,11 @@ pub struct MapTowersArgs {
     /// over 3 s); the box's own bearing error is 0.06 degrees.
     #[arg(long, default_value_t = 0.5)]
     bearing_sigma_deg: f64,
+    /// One-sigma error of the log's GNSS velocity, m/s: where the log gives
+    /// velocities, they tie each second's GNSS error to the next. 0 leaves
+    /// them out.
+    #[arg(long, default_value_t = 0.1)]
+    velocity_sigma_mps: f64,
     /// One-sigma yaw of the camera on its mount against the attitude,
     /// degrees: 0 takes the calibration's mount as exact. Give 1-2 for a
     /// mount never calibrated: the flight then solves one yaw for it from
@@ -75,9 +80,10 @@ impl MapTowersArgs {
                 && self.gnss_correlation_s >= 0.0
                 && self.bearing_sigma_deg > 0.0
                 && self.boresight_sigma_deg >= 0.0
+                && self.velocity_sigma_mps >= 0.0
                 && self.anchor_sigma_m >= 0.0
                 && self.min_views >= 2,
-            "--gnss-sigma-m, --gnss-correlation-s, --boresight-sigma-deg and --anchor-sigma-m must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
+            "--gnss-sigma-m, --gnss-correlation-s, --velocity-sigma-mps, --boresight-sigma-deg and --anchor-sigma-m must be 0 or more, --bearing-sigma-deg positive and --min-views 2 or more"
         );
         let mut c = r.survey_config(self.log.as_ref())?;
         if let Some(m) = &self.model {
@@ -89,6 +95,7 @@ impl MapTowersArgs {
                 boresight_sigma_rad: self.boresight_sigma_deg.to_radians(),
                 position_sigma_m: self.gnss_sigma_m,
                 position_correlation_s: self.gnss_correlation_s,
+                velocity_sigma_mps: self.velocity_sigma_mps,
                 min_views: self.min_views,
                 ..TriangulationParams::default()
             },
