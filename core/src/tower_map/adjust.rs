@@ -108,7 +108,7 @@ fn bin_middle(bin: i64) -> f64 {
 }
 
 /// How much the GNSS error at `time_s` differs from its second's, by the
-/// log's velocities (zero without them): the error wanders by 0.6 m
+/// log's velocities (zero without them): the error wanders by 0.64 m
 /// within a second, which the velocities measure to centimetres.
 fn within_second(drift: &GnssDrift, time_s: f64) -> Vector2<f64> {
     drift

@@ -7,7 +7,7 @@
 //! seconds it changes as the error does, to what the velocity's own error
 //! integrates to. The adjustment takes those changes as measurements
 //! beside its Gauss-Markov prior, which alone lets the error of one second
-//! differ from the next by 0.65 m (1.5 m, 10 s).
+//! differ from the next by 0.64 m (1.5 m, 10 s).
 
 use nalgebra::{Point2, Vector2};
 
